@@ -1,0 +1,1 @@
+"""Warp kernels of warpskill, installed as ``warpskill.kernels``."""

@@ -1,0 +1,124 @@
+"""The pinhole camera of the data contract (``FORMATS.md``).
+
+World frame: z up, ground at z = 0, x to the image's right, y away from the camera.
+The optical centre sits at ``(0, 0, height)``; the camera looks along +y, pitched down by
+``elevation`` [rad]. Camera axes follow OpenCV (x right, y down, z forward). Image
+coordinates are continuous, with the centre of pixel (row i, column j) at (j + 0.5, i + 0.5).
+
+All functions take and return Torch tensors so that gradients reach the camera's height
+and elevation; intrinsics are fixed (not optimised).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+
+def default_intrinsics(height: int, width: int) -> np.ndarray:
+    """The paper's intrinsics for an image of ``height`` x ``width`` pixels.
+
+    Horizontal field of view 80 deg, vertical 60 deg, principal point at the image centre.
+
+    Returns:
+        (3, 3) float64 matrix K.
+    """
+    fx = width / (2.0 * math.tan(math.radians(40.0)))
+    fy = height / (2.0 * math.tan(math.radians(30.0)))
+    return np.array([[fx, 0.0, width / 2.0], [0.0, fy, height / 2.0], [0.0, 0.0, 1.0]])
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Fixed intrinsics of an image: ``K`` (3, 3) [px] and ``image_size`` (H, W) [px]."""
+
+    K: np.ndarray
+    image_size: tuple[int, int]
+
+    @classmethod
+    def default(cls, height: int, width: int) -> "Intrinsics":
+        """The paper's default intrinsics for an ``height`` x ``width`` image."""
+        return cls(default_intrinsics(height, width), (int(height), int(width)))
+
+    def resized(self, height: int, width: int) -> "Intrinsics":
+        """The same camera seen through an image resampled to ``height`` x ``width``.
+
+        Continuous pixel coordinates scale exactly, so masks downsampled by area
+        averaging line up with renderings made with these intrinsics.
+        """
+        sy = height / self.image_size[0]
+        sx = width / self.image_size[1]
+        K = np.diag([sx, sy, 1.0]) @ self.K
+        return Intrinsics(K, (int(height), int(width)))
+
+    def scaled(self, factor: float) -> "Intrinsics":
+        """Intrinsics for the image scaled by ``factor`` (rounded to whole pixels)."""
+        H, W = self.image_size
+        return self.resized(max(1, round(H * factor)), max(1, round(W * factor)))
+
+
+def camera_rotation(elevation: torch.Tensor) -> torch.Tensor:
+    """Camera-to-world rotation R_wc for a camera pitched down by ``elevation`` [rad].
+
+    Args:
+        elevation: scalar tensor (or any shape ``S``).
+
+    Returns:
+        (*S, 3, 3) tensor whose columns are the camera's x, y, z axes in the world.
+    """
+    e = torch.as_tensor(elevation)
+    s, c = torch.sin(e), torch.cos(e)
+    zero, one = torch.zeros_like(e), torch.ones_like(e)
+    rows = [
+        torch.stack([one, zero, zero], dim=-1),
+        torch.stack([zero, -s, c], dim=-1),
+        torch.stack([zero, -c, -s], dim=-1),
+    ]
+    return torch.stack(rows, dim=-2)
+
+
+def world_to_camera(points: torch.Tensor, height: torch.Tensor, elevation: torch.Tensor) -> torch.Tensor:
+    """Express world points [m] in the camera frame: ``R_wc^T (p - c)``.
+
+    Args:
+        points: (..., 3) world points.
+        height: scalar camera height [m].
+        elevation: scalar camera elevation [rad].
+
+    Returns:
+        (..., 3) camera-frame points (z is the depth along the optical axis).
+    """
+    R = camera_rotation(elevation).to(points)
+    h = torch.as_tensor(height).to(points)
+    centre = torch.stack([torch.zeros_like(h), torch.zeros_like(h), h])
+    return (points - centre) @ R
+
+
+def camera_to_world(points: torch.Tensor, height: torch.Tensor, elevation: torch.Tensor) -> torch.Tensor:
+    """Inverse of :func:`world_to_camera`."""
+    R = camera_rotation(elevation).to(points)
+    h = torch.as_tensor(height).to(points)
+    centre = torch.stack([torch.zeros_like(h), torch.zeros_like(h), h])
+    return points @ R.transpose(-1, -2) + centre
+
+
+def project(points_cam: torch.Tensor, K: torch.Tensor | np.ndarray, *, min_depth: float = 1e-3) -> torch.Tensor:
+    """Pinhole projection of camera-frame points to continuous pixel coordinates.
+
+    Args:
+        points_cam: (..., 3) camera-frame points [m].
+        K: (3, 3) intrinsics [px].
+        min_depth: depths below this [m] are clamped (points behind the camera must be
+            clipped by the caller; the clamp only keeps the division finite).
+
+    Returns:
+        (..., 2) pixel coordinates (u, v).
+    """
+    K = torch.as_tensor(K, dtype=points_cam.dtype, device=points_cam.device)
+    z = points_cam[..., 2].clamp_min(min_depth)
+    u = K[0, 0] * points_cam[..., 0] / z + K[0, 2]
+    v = K[1, 1] * points_cam[..., 1] / z + K[1, 2]
+    return torch.stack([u, v], dim=-1)
