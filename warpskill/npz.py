@@ -1,0 +1,66 @@
+"""Reading and atomically writing the ``.npz`` files of the data contract."""
+
+from __future__ import annotations
+
+import os
+import secrets
+import zipfile
+import zlib
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+_READ_ERRORS = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error)
+
+
+def read_npz(path: str | os.PathLike, error: type[Exception]) -> dict[str, np.ndarray]:
+    """Read every array of the ``.npz`` archive at ``path`` into memory.
+
+    Arrays are read eagerly, so a corrupt member is reported here rather than on first use.
+    Pickled (object) arrays are refused.
+
+    Args:
+        path: the archive.
+        error: exception class raised, with the path in its message, for a file that is
+            not a readable ``.npz`` archive.
+
+    Raises:
+        FileNotFoundError: ``path`` does not exist.
+    """
+    try:
+        archive = np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise
+    except _READ_ERRORS as exc:
+        raise error(f"{path}: not a readable .npz archive ({type(exc).__name__}: {exc})") from exc
+    if not isinstance(archive, np.lib.npyio.NpzFile):
+        raise error(f"{path}: not an .npz archive (a single array)")
+    arrays = {}
+    with archive:
+        for key in archive.files:
+            try:
+                arrays[key] = archive[key]
+            except _READ_ERRORS as exc:
+                raise error(f"{path}: {key}: unreadable ({type(exc).__name__}: {exc})") from exc
+    return arrays
+
+
+def save_npz_atomic(path: str | os.PathLike, arrays: Mapping[str, np.ndarray]) -> None:
+    """Write ``arrays`` with ``numpy.savez_compressed`` to exactly ``path``, atomically.
+
+    The archive is written to a new file in the same folder and renamed over ``path``
+    only once complete, so an existing file is never left half-written. The temporary
+    file is removed if writing fails.
+    """
+    path = Path(path)
+    temporary = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+    try:
+        with open(temporary, "xb") as file:
+            np.savez_compressed(file, **arrays)
+            file.flush()
+            os.fsync(file.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        temporary.unlink(missing_ok=True)
+        raise
