@@ -1,0 +1,498 @@
+"""Tiled soft-silhouette rasterizer of convex prisms (``docs/architecture.md``, "Rasterizer").
+
+Per frame f and primitive k (a convex prism projected to 2D vertices), :func:`build_hulls`
+finds the convex hull of the projected vertices (Jarvis march), its edge lines and screen
+bounds padded by the soft band. :func:`rasterize` cuts the image into TILE x TILE tiles; a
+tile thread sorts the primitives into out of reach, fully covered, or partial (keeping only
+the hull edges that can matter in the tile) and writes, per pixel centre
+p = (j + 0.5, i + 0.5):
+
+    sd_k = max over hull edges e of n_e . p - o_e       signed distance [px], n_e outward
+    c_k  = sigmoid(-sd_k / sigma)                       exactly 0 (1) beyond +(-) CUTOFF sigma
+    z_k  = max over faces with n . r < 0 of d / n . r   entry depth [m] of the ray r through p,
+                                                        or through the nearest hull point
+                                                        where sd_k > 0 (continuous depth)
+    v_k  = c_k prod_{l: z_l < z_k} (1 - c_l)            visible mask; depth only where two
+                                                        or more layers cover p
+
+:func:`rasterize_backward` recomputes a tile per primitive, turns dL/dv into dL/dsd_k and
+reduces, per hull edge e, the moments (sum g, sum g (p - a_e)) over the pixels whose
+distance edge is e (a_e the edge's first vertex), with one atomic add per (tile, primitive,
+edge). Depth order carries no gradient. All kernels are forward-only; the Torch bridge
+(``warpskill.render``) turns moments into vertex gradients.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False})
+
+TILE = 16
+"""Tile edge [px]."""
+
+MAX_PRIMITIVES = 8
+"""Most primitives per frame (bits of a tile's primitive mask)."""
+
+MAX_SIDES = 24
+"""Most sides of a prism: 2 * MAX_SIDES vertices, MAX_SIDES + 2 face planes."""
+
+MAX_HULL = 32
+"""Most hull vertices (a convex n-prism's silhouette has at most n + 2)."""
+
+CUTOFF = 12.0
+"""Coverage is exactly 0 where sd > CUTOFF * sigma and 1 where sd < -CUTOFF * sigma (sigmoid(-12) = 6e-6)."""
+
+MITER_CAP = 4.0
+"""Bounds pad the hull by CUTOFF * sigma times the largest corner miter, capped here."""
+
+_EMPTY_BOUND = wp.constant(wp.vec4(1.0e30, 1.0e30, -1.0e30, -1.0e30))
+_LAYERS = wp.types.vector(length=MAX_PRIMITIVES, dtype=wp.float32)  # a value per primitive at a pixel
+_EDGES = wp.types.vector(length=MAX_PRIMITIVES, dtype=wp.int32)  # a hull edge per primitive at a pixel
+_EDGE_SETS = wp.types.vector(length=MAX_PRIMITIVES, dtype=wp.uint32)  # hull edges (bit e) per primitive in a tile
+_MOMENTS = wp.types.matrix(shape=(MAX_HULL, 3), dtype=wp.float32)  # (sum g, sum g p) per hull edge
+
+
+@wp.func
+def _cross(a: wp.vec2, b: wp.vec2) -> float:
+    return a[0] * b[1] - a[1] * b[0]
+
+
+@wp.func
+def _lowest(bits: Any) -> int:
+    """Index of the lowest set bit of a nonzero integer (iterate with bits &= bits - 1)."""
+    one = type(bits)(1)
+    return int(wp.bit_count((bits ^ (bits & (bits - one))) - one))
+
+
+@wp.func
+def _hull_step(vert_in: wp.array3d(dtype=wp.vec2), f: int, k: int, n: int, cur: int) -> int:
+    """Jarvis step: the vertex after ``cur`` counter-clockwise (-1 when all coincide)."""
+    pc = vert_in[f, k, cur]
+    nxt = int(-1)
+    for q in range(n):
+        d = vert_in[f, k, q] - pc
+        dd = wp.dot(d, d)
+        if dd > 1.0e-12:
+            if nxt < 0:
+                nxt = q
+            else:
+                e = vert_in[f, k, nxt] - pc
+                ee = wp.dot(e, e)
+                cr = _cross(e, d)
+                tol = 1.0e-6 * wp.sqrt(dd * ee)
+                if cr < -tol or (cr <= tol and dd > ee):
+                    nxt = q  # q lies right of cur -> nxt, or beyond nxt on the same line
+    return nxt
+
+
+@wp.kernel
+def _hulls(
+    # Model:
+    sides: wp.array(dtype=int),
+    pad: float,
+    # Data in:
+    visible_in: wp.array2d(dtype=int),
+    vert_in: wp.array3d(dtype=wp.vec2),
+    # Data out:
+    hull_out: wp.array3d(dtype=int),
+    count_out: wp.array2d(dtype=int),
+    line_out: wp.array3d(dtype=wp.vec3),
+    bound_out: wp.array2d(dtype=wp.vec4),
+):
+    f, k = wp.tid()
+    count_out[f, k] = 0
+    bound_out[f, k] = _EMPTY_BOUND
+    if visible_in[f, k] == 0:
+        return
+    n = 2 * sides[k]
+
+    start = int(0)
+    for q in range(1, n):
+        p, s = vert_in[f, k, q], vert_in[f, k, start]
+        if p[1] < s[1] or (p[1] == s[1] and p[0] < s[0]):
+            start = q
+    count = int(0)
+    cur = start
+    while count < MAX_HULL:
+        hull_out[f, k, count] = cur
+        count += 1
+        cur = _hull_step(vert_in, f, k, n, cur)
+        if cur < 0 or cur == start:
+            break
+    if count < 3:
+        return
+
+    lo = wp.vec2(1.0e30, 1.0e30)
+    hi = wp.vec2(-1.0e30, -1.0e30)
+    miter = float(1.0)
+    for e in range(count):
+        a = vert_in[f, k, hull_out[f, k, e]]
+        d = vert_in[f, k, hull_out[f, k, (e + 1) % count]] - a
+        normal = wp.vec2(d[1], -d[0]) / wp.max(wp.length(d), 1.0e-12)
+        line_out[f, k, e] = wp.vec3(normal[0], normal[1], wp.dot(normal, a))
+        lo = wp.min(lo, a)
+        hi = wp.max(hi, a)
+    for e in range(count):
+        prev = line_out[f, k, (e + count - 1) % count]
+        line = line_out[f, k, e]
+        cosine = prev[0] * line[0] + prev[1] * line[1]
+        miter = wp.max(miter, wp.min(wp.sqrt(2.0 / wp.max(1.0 + cosine, 1.0e-6)), MITER_CAP))
+    reach = pad * miter
+    bound_out[f, k] = wp.vec4(lo[0] - reach, lo[1] - reach, hi[0] + reach, hi[1] + reach)
+    count_out[f, k] = count
+
+
+@wp.func
+def _inside(bound: wp.vec4, u: float, v: float) -> bool:
+    return u >= bound[0] and u <= bound[2] and v >= bound[1] and v <= bound[3]
+
+
+@wp.func
+def _edge_range(line: wp.vec3, lo: wp.vec2, hi: wp.vec2) -> wp.vec2:
+    """Min and max of the edge line's distance over the rectangle [lo, hi] (at its corners)."""
+    base = line[0] * lo[0] + line[1] * lo[1] - line[2]
+    du = line[0] * (hi[0] - lo[0])
+    dv = line[1] * (hi[1] - lo[1])
+    return wp.vec2(base + wp.min(du, 0.0) + wp.min(dv, 0.0), base + wp.max(du, 0.0) + wp.max(dv, 0.0))
+
+
+@wp.func
+def _tile_classes(
+    count_in: wp.array2d(dtype=int),
+    line_in: wp.array3d(dtype=wp.vec3),
+    bound_in: wp.array2d(dtype=wp.vec4),
+    f: int,
+    lo: wp.vec2,
+    hi: wp.vec2,
+    limit: float,
+) -> tuple[int, int, _EDGE_SETS]:
+    """Classify the primitives against the tile whose pixel centres span [lo, hi].
+
+    Returns bit masks (partial, full) of the primitives whose soft band meets the tile and of
+    those with coverage exactly 1 all over it, and per partial primitive the set of hull
+    edges that can hold the signed distance somewhere in the tile where it is >= -limit: an
+    edge whose max over the tile is below the largest per-edge min over the tile (a lower
+    bound of sd there), or below -limit, never does.
+    """
+    partial = int(0)
+    full = int(0)
+    edges = _EDGE_SETS()
+    for k in range(count_in.shape[1]):
+        b = bound_in[f, k]
+        count = count_in[f, k]
+        if count > 0 and b[2] >= lo[0] and b[0] <= hi[0] and b[3] >= lo[1] and b[1] <= hi[1]:
+            floor = float(-1.0e30)
+            top = float(-1.0e30)
+            for e in range(count):
+                r = _edge_range(line_in[f, k, e], lo, hi)
+                floor = wp.max(floor, r[0])
+                top = wp.max(top, r[1])
+            if top < -limit:
+                full = full | (1 << k)
+            elif floor <= limit:
+                keep = wp.max(floor, -limit)
+                for e in range(count):
+                    if _edge_range(line_in[f, k, e], lo, hi)[1] >= keep:
+                        edges[k] = edges[k] | (wp.uint32(1) << wp.uint32(e))
+                partial = partial | (1 << k)
+    return partial, full, edges
+
+
+@wp.func
+def _signed_distance(
+    line_in: wp.array3d(dtype=wp.vec3), f: int, k: int, edges: wp.uint32, p: wp.vec2, limit: float
+) -> tuple[float, int]:
+    """Signed distance [px] of p to hull k over a set of its edges, and the edge holding it;
+    stops early once above ``limit``."""
+    sd = float(-1.0e30)
+    edge = int(0)
+    rest = edges
+    while rest != wp.uint32(0):
+        e = _lowest(rest)
+        rest = rest & (rest - wp.uint32(1))
+        line = line_in[f, k, e]
+        d = line[0] * p[0] + line[1] * p[1] - line[2]
+        if d > sd:
+            sd = d
+            edge = e
+            if sd > limit:
+                return sd, edge
+    return sd, edge
+
+
+@wp.func
+def _layers(
+    line_in: wp.array3d(dtype=wp.vec3),
+    bound_in: wp.array2d(dtype=wp.vec4),
+    f: int,
+    partial: int,
+    full: int,
+    edges: _EDGE_SETS,
+    p: wp.vec2,
+    sigma: float,
+) -> tuple[int, _LAYERS, _LAYERS, _EDGES]:
+    """At p: the bit mask of the primitives with nonzero coverage, their coverages, and the
+    signed distances and hull edges of the ``partial`` ones (the ``full`` ones have c = 1)."""
+    c = _LAYERS()
+    sd = _LAYERS()
+    edge = _EDGES()
+    covered = full
+    limit = CUTOFF * sigma
+    rest = partial | full
+    while rest != 0:
+        k = _lowest(rest)
+        rest = rest & (rest - 1)
+        if (full >> k) & 1:
+            c[k] = 1.0
+            sd[k] = -1.0e30
+        elif _inside(bound_in[f, k], p[0], p[1]):
+            d, e = _signed_distance(line_in, f, k, edges[k], p, limit)
+            if d <= limit:
+                covered = covered | (1 << k)
+                c[k] = 1.0
+                if d >= -limit:
+                    c[k] = 1.0 / (1.0 + wp.exp(d / sigma))
+                sd[k] = d
+                edge[k] = e
+    return covered, c, sd, edge
+
+
+@wp.func
+def _ray(intrinsics: wp.vec4, p: wp.vec2) -> wp.vec3:
+    """Camera-frame ray direction (unit depth) through pixel point p; intrinsics (fx, fy, cx, cy)."""
+    return wp.vec3((p[0] - intrinsics[2]) / intrinsics[0], (p[1] - intrinsics[3]) / intrinsics[1], 1.0)
+
+
+@wp.func
+def _depths(
+    intrinsics: wp.vec4,
+    vert_in: wp.array3d(dtype=wp.vec2),
+    hull_in: wp.array3d(dtype=int),
+    count_in: wp.array2d(dtype=int),
+    plane_count_in: wp.array2d(dtype=int),
+    plane_in: wp.array3d(dtype=wp.vec4),
+    f: int,
+    bits: int,
+    sd: _LAYERS,
+    edge: _EDGES,
+    p: wp.vec2,
+) -> _LAYERS:
+    """Depths [m] at p of the primitives in ``bits``.
+
+    The entry depth of the ray through p (the max over faces with n . r < 0 of d / n . r,
+    camera-facing faces only); outside a hull (sd > 0, the soft band), that of the ray
+    through the nearest hull point, so that depth stays continuous where coverage is
+    nonzero: a ray that misses a prism has no meaningful entry depth.
+    """
+    z = _LAYERS()
+    rest = bits
+    while rest != 0:
+        k = _lowest(rest)
+        rest = rest & (rest - 1)
+        q = p
+        if sd[k] > 0.0:
+            count = count_in[f, k]
+            a = vert_in[f, k, hull_in[f, k, edge[k]]]
+            d = vert_in[f, k, hull_in[f, k, (edge[k] + 1) % count]] - a
+            q = a + wp.clamp(wp.dot(p - a, d) / wp.max(wp.dot(d, d), 1.0e-12), 0.0, 1.0) * d
+        ray = _ray(intrinsics, q)
+        depth = float(-1.0e30)
+        for i in range(plane_count_in[f, k]):
+            plane = plane_in[f, k, i]
+            nr = plane[0] * ray[0] + plane[1] * ray[1] + plane[2] * ray[2]
+            if nr < 0.0:
+                depth = wp.max(depth, plane[3] / nr)
+        z[k] = depth
+    return z
+
+
+@wp.func
+def _in_front(z: _LAYERS, a: int, b: int) -> bool:
+    """Whether layer a is in front of layer b (ties broken by index)."""
+    return z[a] < z[b] or (z[a] == z[b] and a < b)
+
+
+@wp.func
+def _transmittance(c: _LAYERS, z: _LAYERS, bits: int, k: int, skip: int) -> float:
+    """prod (1 - c_l) over the layers l in ``bits`` in front of k, leaving out k and ``skip``."""
+    t = float(1.0)
+    rest = bits
+    while rest != 0:
+        l = _lowest(rest)
+        rest = rest & (rest - 1)
+        if l != k and l != skip and _in_front(z, l, k):
+            t = t * (1.0 - c[l])
+    return t
+
+
+@wp.func
+def _tile_corners(x0: int, y0: int, H: int, W: int) -> tuple[wp.vec2, wp.vec2]:
+    """First and last pixel centres of the tile at (x0, y0)."""
+    lo = wp.vec2(float(x0) + 0.5, float(y0) + 0.5)
+    hi = wp.vec2(float(wp.min(x0 + TILE, W)) - 0.5, float(wp.min(y0 + TILE, H)) - 0.5)
+    return lo, hi
+
+
+@wp.kernel
+def _forward(
+    # Model:
+    intrinsics: wp.vec4,
+    sigma: float,
+    # Data in:
+    vert_in: wp.array3d(dtype=wp.vec2),
+    hull_in: wp.array3d(dtype=int),
+    count_in: wp.array2d(dtype=int),
+    line_in: wp.array3d(dtype=wp.vec3),
+    bound_in: wp.array2d(dtype=wp.vec4),
+    plane_count_in: wp.array2d(dtype=int),
+    plane_in: wp.array3d(dtype=wp.vec4),
+    # Data out:
+    mask_out: wp.array4d(dtype=float),
+):
+    f, ty, tx = wp.tid()
+    H, W = mask_out.shape[2], mask_out.shape[3]
+    x0, y0 = tx * TILE, ty * TILE
+    lo, hi = _tile_corners(x0, y0, H, W)
+    partial, full, edges = _tile_classes(count_in, line_in, bound_in, f, lo, hi, CUTOFF * sigma)
+    if partial == 0 and full == 0:
+        return
+    for i in range(y0, wp.min(y0 + TILE, H)):
+        for j in range(x0, wp.min(x0 + TILE, W)):
+            p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
+            covered, c, sd, edge = _layers(line_in, bound_in, f, partial, full, edges, p, sigma)
+            if covered & (covered - 1) == 0:  # at most one layer: no depth test
+                if covered != 0:
+                    k = _lowest(covered)
+                    mask_out[f, k, i, j] = c[k]
+            else:
+                z = _depths(intrinsics, vert_in, hull_in, count_in, plane_count_in, plane_in, f, covered, sd, edge, p)
+                rest = covered
+                while rest != 0:
+                    k = _lowest(rest)
+                    rest = rest & (rest - 1)
+                    mask_out[f, k, i, j] = c[k] * _transmittance(c, z, covered, k, -1)
+
+
+@wp.kernel
+def _backward(
+    # Model:
+    intrinsics: wp.vec4,
+    sigma: float,
+    # Data in:
+    vert_in: wp.array3d(dtype=wp.vec2),
+    hull_in: wp.array3d(dtype=int),
+    count_in: wp.array2d(dtype=int),
+    line_in: wp.array3d(dtype=wp.vec3),
+    bound_in: wp.array2d(dtype=wp.vec4),
+    plane_count_in: wp.array2d(dtype=int),
+    plane_in: wp.array3d(dtype=wp.vec4),
+    mask_grad_in: wp.array4d(dtype=float),
+    # Data out:
+    moment_out: wp.array3d(dtype=wp.vec3),
+):
+    f, k, ty, tx = wp.tid()
+    H, W = mask_grad_in.shape[2], mask_grad_in.shape[3]
+    x0, y0 = tx * TILE, ty * TILE
+    lo, hi = _tile_corners(x0, y0, H, W)
+    limit = CUTOFF * sigma
+    partial, full, edges = _tile_classes(count_in, line_in, bound_in, f, lo, hi, limit)
+    if (partial >> k) & 1 == 0:  # coverage is constant (0 or 1) over the tile
+        return
+    bit = 1 << k
+    count = count_in[f, k]
+    bound = bound_in[f, k]
+    origin = wp.vec2(float(x0 + TILE // 2), float(y0 + TILE // 2))  # moments about the tile centre
+    acc = _MOMENTS()
+    for i in range(y0, wp.min(y0 + TILE, H)):
+        for j in range(x0, wp.min(x0 + TILE, W)):
+            p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
+            if _inside(bound, p[0], p[1]):
+                sdk, ek = _signed_distance(line_in, f, k, edges[k], p, limit)
+                if sdk <= limit and sdk >= -limit:
+                    ck = 1.0 / (1.0 + wp.exp(sdk / sigma))
+                    dc = mask_grad_in[f, k, i, j]
+                    others, c, sd, edge = _layers(line_in, bound_in, f, partial ^ bit, full, edges, p, sigma)
+                    if others != 0:
+                        covered = others | bit
+                        c[k] = ck
+                        sd[k] = sdk
+                        edge[k] = ek
+                        z = _depths(
+                            intrinsics, vert_in, hull_in, count_in, plane_count_in, plane_in, f, covered, sd, edge, p
+                        )
+                        dc = dc * _transmittance(c, z, covered, k, -1)
+                        rest = others
+                        while rest != 0:
+                            m = _lowest(rest)
+                            rest = rest & (rest - 1)
+                            if _in_front(z, k, m):
+                                dc = dc - mask_grad_in[f, m, i, j] * c[m] * _transmittance(c, z, covered, m, k)
+                    g = -dc * ck * (1.0 - ck) / sigma
+                    acc[ek, 0] += g
+                    acc[ek, 1] += g * (p[0] - origin[0])
+                    acc[ek, 2] += g * (p[1] - origin[1])
+    for e in range(count):
+        if acc[e, 0] != 0.0:
+            a = vert_in[f, k, hull_in[f, k, e]]
+            shift = origin - a
+            moment = wp.vec3(acc[e, 0], acc[e, 1] + acc[e, 0] * shift[0], acc[e, 2] + acc[e, 0] * shift[1])
+            wp.atomic_add(moment_out, f, k, e, moment)
+
+
+def _tiles(height: int, width: int) -> tuple[int, int]:
+    return (height + TILE - 1) // TILE, (width + TILE - 1) // TILE
+
+
+def build_hulls(
+    sides: wp.array,
+    pad: float,
+    visible: wp.array,
+    vertices: wp.array,
+    hull: wp.array,
+    count: wp.array,
+    line: wp.array,
+    bound: wp.array,
+) -> None:
+    """Convex hulls (F, P, MAX_HULL), counts (F, P), edge lines and bounds padded by ``pad`` [px]."""
+    inputs = [sides, pad, visible, vertices]
+    wp.launch(_hulls, dim=count.shape, inputs=inputs, outputs=[hull, count, line, bound], device=count.device)
+
+
+def rasterize(
+    intrinsics: wp.vec4,
+    sigma: float,
+    vertices: wp.array,
+    hull: wp.array,
+    count: wp.array,
+    line: wp.array,
+    bound: wp.array,
+    plane_count: wp.array,
+    plane: wp.array,
+    mask: wp.array,
+) -> None:
+    """Visible soft masks (F, P, H, W) into the zero-initialised ``mask``."""
+    dim = (mask.shape[0], *_tiles(mask.shape[2], mask.shape[3]))
+    inputs = [intrinsics, sigma, vertices, hull, count, line, bound, plane_count, plane]
+    wp.launch(_forward, dim=dim, inputs=inputs, outputs=[mask], device=mask.device)
+
+
+def rasterize_backward(
+    intrinsics: wp.vec4,
+    sigma: float,
+    vertices: wp.array,
+    hull: wp.array,
+    count: wp.array,
+    line: wp.array,
+    bound: wp.array,
+    plane_count: wp.array,
+    plane: wp.array,
+    mask_grad: wp.array,
+    moment: wp.array,
+) -> None:
+    """Per hull edge moments (sum g, sum g (p - a)) of g = dL/dsd into the zero-initialised ``moment``."""
+    dim = (mask_grad.shape[0], mask_grad.shape[1], *_tiles(mask_grad.shape[2], mask_grad.shape[3]))
+    inputs = [intrinsics, sigma, vertices, hull, count, line, bound, plane_count, plane, mask_grad]
+    wp.launch(_backward, dim=dim, inputs=inputs, outputs=[moment], device=moment.device)

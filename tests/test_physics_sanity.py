@@ -1,0 +1,127 @@
+"""Physical behaviour of float32 rollouts at the default step (12 fps, 20 substeps)."""
+
+import numpy as np
+import pytest
+import torch
+
+from warpskill.physics import PhysicsConfig, simulate, substeps_per_frame
+
+FPS = 12.0
+SPF = substeps_per_frame(FPS)
+REST_DEPTH = PhysicsConfig().gravity / (25 * PhysicsConfig().kp)  # a face's 25 points carry the weight [m]
+
+
+def _yaw(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _tilt(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _run(duration: float, *, hand_vel=None, hand_pos0=None, grasp0=None, statics=(), **objects) -> object:
+    """Simulate B float32 scenes; objects: object_pos0, object_rot0, object_size as (B, ...) arrays;
+    statics: one (pos, yaw, size) per scene (same K = 0 or 1 for all)."""
+    B = len(objects["object_pos0"])
+    steps = int(round(duration * FPS)) * SPF
+    f32 = lambda a: torch.tensor(np.asarray(a, dtype=np.float64), dtype=torch.float32)  # noqa: E731
+    K = 1 if statics else 0
+    return simulate(
+        f32(np.tile([0.0, 0.0, 1.0], (B, 1)) if hand_pos0 is None else hand_pos0),
+        f32(np.tile(np.eye(3), (B, 1, 1))),
+        f32(np.full(B, -1.0) if grasp0 is None else grasp0),
+        f32(np.zeros((B, steps, 7)) if hand_vel is None else hand_vel),
+        f32(objects["object_pos0"]),
+        f32(objects["object_rot0"]),
+        f32(objects["object_size"]),
+        f32([[s[0]] for s in statics]).reshape(B, K, 3),
+        f32([[_yaw(s[1])] for s in statics]).reshape(B, K, 3, 3),
+        f32([[s[2]] for s in statics]).reshape(B, K, 3),
+        steps_per_frame=SPF,
+        fps=FPS,
+    )
+
+
+def _corners(pos: torch.Tensor, rot: torch.Tensor, size: np.ndarray) -> np.ndarray:
+    """(..., 8, 3) corners of cuboids at poses (..., 3), (..., 3, 3)."""
+    signs = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])
+    local = signs * size[:, None, None, :]  # (B, 1, 8, 3)
+    return pos.numpy()[..., None, :] + np.einsum("bnij,bnkj->bnki", rot.numpy(), local)
+
+
+def test_resting_cuboids_stay_put_for_five_seconds():
+    size = np.array([[0.1, 0.08, 0.06], [0.07, 0.05, 0.04]])
+    # on the ground; on top of a static cuboid
+    pos = np.array([[0.3, 0.1, 0.03], [0.0, 0.0, 0.08 + 0.02]])
+    statics = [((0.0, 0.0, 0.04), 0.0, (0.2, 0.2, 0.08))] * 2
+    rot = np.stack([_yaw(0.4), _yaw(-0.3)])
+    out = _run(5.0, object_pos0=pos, object_rot0=rot, object_size=size, statics=statics)
+    drift = (out.object_pos - out.object_pos[:, :1]).norm(dim=-1)
+    assert drift.max() < 1e-3  # [m], the settling depth included
+    assert out.object_pos[:, -1, 2].numpy() == pytest.approx(pos[:, 2] - REST_DEPTH, abs=1e-4)
+    assert (out.object_rot - out.object_rot[:, :1]).abs().max() < 1e-3
+    assert out.object_vel[:, -1].norm(dim=-1).max() < 1e-4  # [m/s]
+
+
+def test_dropped_cuboids_settle_on_the_ground_and_on_a_static_cuboid():
+    """Dropped from 15 cm onto the ground (the static cuboid far away) and onto the static's
+    top: level cuboids come to rest; tilted ones land on an edge and, with unit rotational
+    inertia, rock for seconds, but never sink far or pass through."""
+    size = np.array([[0.08, 0.06, 0.05]] * 4)
+    rot = np.stack([_yaw(0.3), _yaw(-0.6), _yaw(0.3) @ _tilt(0.3), _yaw(-0.6) @ _tilt(-0.3)])
+    pos = np.array([[0.6, 0.0, 0.15], [0.0, 0.0, 0.25]] * 2)
+    support = np.array([0.0, 0.1] * 2)  # height of the supporting surface [m]
+    statics = [((0.0, 0.0, 0.05), 0.2, (0.3, 0.3, 0.1))] * 4
+    out = _run(3.0, object_pos0=pos, object_rot0=rot, object_size=size, statics=statics)
+    lowest = _corners(out.object_pos, out.object_rot, size)[..., 2].min(axis=-1) - support[:, None]  # (B, N)
+    rest = slice(24, None)  # after 2 s
+    assert out.object_vel[:2, rest].norm(dim=-1).max() < 1e-4
+    assert out.object_ang_vel[:2, rest].norm(dim=-1).max() < 1e-4
+    assert np.abs(lowest[:2, rest] + REST_DEPTH).max() < 1e-4  # level, 0.8 mm deep: within 1 mm
+    assert lowest.min() > -0.01  # the deepest corner at impact [m]
+    assert out.object_pos[1::2, :, 2].min() > 0.1  # centres never below the static's top
+
+
+def test_grasped_cuboid_follows_the_hand():
+    duration = 2.0
+    steps = int(round(duration * FPS)) * SPF
+    t = np.arange(steps) / (FPS * SPF)
+    vel = np.zeros((1, steps, 7))
+    vel[0, t < 0.5, 2] = 0.4  # lift 20 cm
+    vel[0, t >= 0.5, :6] = [0.2, 0.1, 0.05, 0.6, -0.4, 1.2]  # move and turn
+    size = np.array([[0.08, 0.06, 0.05]])
+    # the tip 1 cm off the centre inside the cuboid, the grasp closed
+    out = _run(duration, hand_vel=vel, hand_pos0=[[0.01, 0.0, 0.025]], grasp0=[0.05],
+               object_pos0=[[0.0, 0.0, 0.025]], object_rot0=_yaw(0.2)[None], object_size=size)  # fmt: skip
+    assert out.grasped.min() > 0.999
+    R_h, R_o = out.hand_rot[0], out.object_rot[0]
+    offset = torch.einsum("nji,nj->ni", R_h, out.object_pos[0] - out.hand_pos[0])  # in the hand frame
+    relative = R_h.transpose(-1, -2) @ R_o
+    assert (offset - offset[:1]).norm(dim=-1).max() < 1e-5  # [m]
+    assert (relative - relative[:1]).abs().max() < 1e-4
+    assert out.hand_pos[0, -1, 0] > 0.25 and torch.linalg.det(R_h[-1]) == pytest.approx(1.0, abs=1e-4)
+
+
+def test_released_cuboid_keeps_the_hand_velocity_and_lands():
+    duration = 2.0
+    steps = int(round(duration * FPS)) * SPF
+    t = np.arange(steps) / (FPS * SPF)
+    vel = np.zeros((1, steps, 7))
+    vel[0, t < 0.4, 2] = 0.25 / 0.4  # lift 25 cm
+    vel[0, (t >= 0.4) & (t < 0.9), 0] = 0.5  # then move along x at 0.5 m/s
+    vel[0, t >= 0.8, 6] = -10.0  # and open quickly while moving (g reaches 0 at t = 0.805 s)
+    size = np.array([[0.08, 0.06, 0.06]])
+    out = _run(duration, hand_vel=vel, hand_pos0=[[0.0, 0.0, 0.03]], grasp0=[0.05], object_size=size,
+               object_pos0=[[0.0, 0.0, 0.03 - REST_DEPTH]], object_rot0=np.eye(3)[None])  # fmt: skip
+    released = int(np.argmax(out.grasped[0].numpy() < 1e-3))
+    assert released == 10  # t = 0.83 s, still moving
+    # free flight: the hand's 0.5 m/s, less 0.5 /s air damping over < 0.03 s
+    assert out.object_vel[0, released, 0].item() == pytest.approx(0.5 * np.exp(-0.5 * 0.03), rel=0.01)
+    flight = out.object_pos[0, released + 1, 0] - out.object_pos[0, released, 0]
+    assert flight.item() == pytest.approx(0.5 / FPS, rel=0.05)
+    # lands flat on the ground, ahead of where it was let go, and stays
+    assert out.object_pos[0, -1, 2].item() == pytest.approx(0.03 - REST_DEPTH, abs=1e-3)
+    assert out.object_pos[0, -1, 0] - out.object_pos[0, released, 0] > 0.08
+    assert out.object_vel[0, -6:].norm(dim=-1).max() < 1e-2
