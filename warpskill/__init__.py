@@ -1,3 +1,47 @@
-"""warpskill: learn a manipulation skill from one video via approximate differentiable physics."""
+"""warpskill: learn a manipulation skill from one video via approximate differentiable physics.
+
+The public API, loaded on first use (so the command line starts fast):
+
+- data: :class:`Demonstration`, :class:`Reconstruction`, :data:`ACTIONS`
+- reconstruction: :func:`optimize`, :class:`OptimizeConfig`, :class:`LossWeights`
+- metric: :func:`evaluate`
+- engine: :func:`simulate`, :class:`PhysicsConfig`, :func:`render_silhouettes`
+- synthetic data: :func:`make_demonstration`
+"""
+
+from __future__ import annotations
+
+import importlib
 
 __version__ = "0.1.0"
+
+_EXPORTS = {
+    "ACTIONS": "actions",
+    "Demonstration": "demonstration",
+    "DemonstrationError": "demonstration",
+    "Reconstruction": "reconstruction",
+    "ReconstructionError": "reconstruction",
+    "optimize": "optimize",
+    "OptimizeConfig": "optimize",
+    "LossWeights": "weights",
+    "evaluate": "evaluate",
+    "Evaluation": "evaluate",
+    "simulate": "physics",
+    "PhysicsConfig": "physics",
+    "render_silhouettes": "render",
+    "make_demonstration": "synthetic",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'warpskill' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(list(globals()) + __all__)

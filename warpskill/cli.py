@@ -1,0 +1,164 @@
+"""The ``warpskill`` command line.
+
+    warpskill demo [-o OUT]                       synthesise, reconstruct, picture, evaluate
+    warpskill optimize DEMO.npz -o OUT            one demonstration to OUT/reconstruction.npz
+    warpskill evaluate RECON.npz [--action A]     the paper's success criteria
+    warpskill bench kernels [--device cpu|cuda]   Warp kernel microbenchmarks
+    warpskill bench synthetic [--seeds N]         the paper's success table on synthetic data
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``warpskill`` console script; returns the exit status."""
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if not hasattr(args, "run"):
+        parser.print_help()
+        return 2
+    try:
+        return args.run(args) or 0
+    except (ValueError, FileNotFoundError) as error:  # bad input: one clear line, no traceback
+        print(f"warpskill: error: {error}", file=sys.stderr)
+        return 1
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="warpskill", description="Learn a manipulation skill from one video.")
+    commands = parser.add_subparsers(title="commands")
+
+    demo = commands.add_parser("demo", help="run the whole pipeline on an embedded synthetic demonstration")
+    demo.add_argument("-o", "--out", type=Path, default=Path("warpskill-out/demo"), help="output folder")
+    demo.add_argument("--action", default="put_onto", help="which action to synthesise (default: put_onto)")
+    _add_optimise_options(demo)
+    demo.set_defaults(run=_demo)
+
+    optimise = commands.add_parser("optimize", help="reconstruct one demonstration .npz")
+    optimise.add_argument("demo", type=Path, help="demonstration .npz (FORMATS.md)")
+    optimise.add_argument("-o", "--out", type=Path, required=True, help="output folder")
+    optimise.add_argument("--init-only", action="store_true", help="stop after the physics-free initialisation")
+    optimise.add_argument("--no-pictures", action="store_true", help="skip the pictures")
+    _add_optimise_options(optimise)
+    optimise.set_defaults(run=_optimize)
+
+    evaluate = commands.add_parser("evaluate", help="check a reconstruction against the paper's success criteria")
+    evaluate.add_argument("reconstruction", type=Path, help="reconstruction .npz (FORMATS.md)")
+    evaluate.add_argument("--action", help="action name (default: the one stored in the file)")
+    evaluate.add_argument("--mode", choices=("strict", "original"), default="strict")
+    evaluate.set_defaults(run=_evaluate)
+
+    bench = commands.add_parser("bench", help="benchmarks").add_subparsers(title="benchmarks")
+    kernels = bench.add_parser("kernels", help="Warp kernel microbenchmarks")
+    kernels.add_argument("--device", default="cpu", help="cpu or cuda")
+    kernels.add_argument("--repeats", type=int, default=5, help="timed repetitions (median reported)")
+    kernels.set_defaults(run=_bench_kernels)
+    synthetic = bench.add_parser("synthetic", help="the 9 actions x N seeds: the paper's success table")
+    synthetic.add_argument("--seeds", type=int, default=3)
+    synthetic.add_argument("--noise", default="moderate", help="none, low, moderate or high")
+    synthetic.add_argument("--actions", nargs="*", help="a subset of the actions (default: all 9)")
+    synthetic.add_argument("-o", "--out", type=Path, help="also write every demonstration and reconstruction here")
+    synthetic.add_argument("--device", default="cpu")
+    synthetic.add_argument("--iterations", type=int, help="physics-stage iterations (default: the library's)")
+    synthetic.set_defaults(run=_bench_synthetic)
+    return parser
+
+
+def _add_optimise_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--device", default=None, help="cpu (default) or cuda")
+    parser.add_argument("--iterations", type=int, default=None, help="physics-stage iterations")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def _reconstruct(demo, out: Path, args, *, init_only: bool = False, pictures: bool = True):
+    """Optimise ``demo`` into ``out`` (resuming its checkpoint), write the npz and pictures."""
+    from .optimize import optimize
+    from .pictures import save_pictures
+
+    out.mkdir(parents=True, exist_ok=True)
+    recon = optimize(
+        demo,
+        device=args.device,
+        iterations=args.iterations,
+        seed=args.seed,
+        progress=not args.quiet,
+        init_only=init_only,
+        checkpoint=out / "checkpoint.pt",
+    )
+    recon.save(out / "reconstruction.npz")
+    print(f"reconstruction: {out / 'reconstruction.npz'}")
+    if pictures:
+        for name, path in save_pictures(recon, demo, out).items():
+            print(f"{name}: {path}")
+    return recon
+
+
+def _report(recon, action) -> None:
+    from .evaluate import evaluate
+
+    if action:
+        result = evaluate(recon, action)
+        failed = [name for name, ok in result.checks.items() if not ok]
+        verdict = "success" if result.success else "failure (" + ", ".join(failed) + ")"
+        print(f"{action}: {verdict}")
+
+
+def _demo(args) -> int:
+    from .synthetic import make_demonstration
+
+    demo = make_demonstration(args.action, seed=args.seed)
+    args.out.mkdir(parents=True, exist_ok=True)
+    demo.save(args.out / "demonstration.npz")
+    print(f"demonstration: {args.out / 'demonstration.npz'} ({args.action}, {demo.num_frames} frames)")
+    _report(_reconstruct(demo, args.out, args), args.action)
+    return 0
+
+
+def _optimize(args) -> int:
+    from .demonstration import Demonstration
+
+    demo = Demonstration.load(args.demo)
+    recon = _reconstruct(demo, args.out, args, init_only=args.init_only, pictures=not args.no_pictures)
+    _report(recon, demo.action)
+    return 0
+
+
+def _evaluate(args) -> int:
+    from .evaluate import evaluate
+    from .reconstruction import Reconstruction
+
+    recon = Reconstruction.load(args.reconstruction)
+    action = args.action or str(recon.action) or None
+    if not action:
+        raise ValueError("the reconstruction names no action: pass --action")
+    result = evaluate(recon, action, mode=args.mode)
+    for name, ok in result.checks.items():
+        print(f"  {'ok  ' if ok else 'FAIL'} {name}")
+    print(f"{action}: {'success' if result.success else 'failure'}")
+    return 0 if result.success else 3
+
+
+def _bench_kernels(args) -> int:
+    from .bench import bench_kernels
+
+    bench_kernels(device=args.device, repeats=args.repeats)
+    return 0
+
+
+def _bench_synthetic(args) -> int:
+    from .bench import bench_synthetic
+
+    bench_synthetic(
+        seeds=args.seeds, noise=args.noise, actions=args.actions, out=args.out, device=args.device,
+        iterations=args.iterations,
+    )
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

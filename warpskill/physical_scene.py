@@ -1,0 +1,206 @@
+"""Stage (b) parameters: a scene whose trajectories come from the physics engine.
+
+The optimised quantities are the paper's: the hand's initial pose and grasp signal and its
+velocity spline (v, w, g' at the knots), the object's initial pose and size, the static
+cuboids' ground position, yaw and size, and the camera's height and elevation. Every
+trajectory is a rollout of :func:`warpskill.physics.simulate`, preceded by a pre-roll and
+followed by a post-roll in which the hand holds still, so the objective can ask the object
+to be at rest before and after the video.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from .initialize import (
+    MIN_OBJECT_SIZE,
+    MIN_STATIC_SIZE,
+    SceneTrajectories,
+    positive,
+    positive_inverse,
+    static_poses,
+)
+from .physics import PhysicsConfig, Rollout, simulate, substeps_per_frame
+from .rotations import rotation_from_6d, rotation_log, rotation_to_6d
+from .spline import natural_cubic_basis
+
+CONTACT_FIT_WEIGHT = 50.0  # contact frames' weight in the hand spline's least-squares fit
+
+
+@dataclass
+class PhysicalRollout:
+    """A rollout split into the video's frames and the still frames around it.
+
+    Attributes:
+        scene: per-frame scene over the video's N frames.
+        rollout: the engine's per-frame output over the video's N frames.
+        still_velocity: (P,) squared object speed (linear [m/s] plus angular [rad/s]) in
+            the pre- and post-roll frames.
+        hand_speed: (N,) squared hand speed from the spline at the video's frames.
+    """
+
+    scene: SceneTrajectories
+    rollout: Rollout
+    still_velocity: torch.Tensor
+    hand_speed: torch.Tensor
+
+
+class PhysicalScene(torch.nn.Module):
+    """Stage (b) parameters, initialised from stage (a)'s per-frame fit.
+
+    Args:
+        fit: per-frame trajectories of stage (a) over N frames.
+        contact: (N,) bool contact signal.
+        fps: frame rate [1/s].
+        knots_per_second: density of the hand's velocity spline.
+        pre_roll, post_roll: still time [s] simulated before and after the video.
+        grasp_level: |g| [m] the grasp signal starts at, positive in contact frames.
+        physics: engine constants.
+    """
+
+    def __init__(
+        self,
+        fit: SceneTrajectories,
+        contact: np.ndarray,
+        fps: float,
+        *,
+        knots_per_second: float,
+        pre_roll: float,
+        post_roll: float,
+        grasp_level: float,
+        physics: PhysicsConfig,
+    ):
+        super().__init__()
+        self.physics = physics
+        self.fps = float(fps)
+        self.num_frames = N = fit.hand_pos.shape[0]
+        self.steps_per_frame = substeps_per_frame(fps, physics)
+        self.pre_frames = math.ceil(pre_roll * fps)
+        self.post_frames = math.ceil(post_roll * fps)
+        duration = (N - 1) / fps
+        num_knots = max(4, round(duration * knots_per_second) + 1)
+        dt = 1.0 / (fps * self.steps_per_frame)
+        step_times = np.arange((N - 1) * self.steps_per_frame) * dt
+        basis = natural_cubic_basis(num_knots, duration, step_times)  # (S, knots)
+        self.register_buffer("step_basis", torch.as_tensor(basis, dtype=torch.float32))
+        frame_times = np.arange(N) / fps
+        self.register_buffer(
+            "frame_basis", torch.as_tensor(natural_cubic_basis(num_knots, duration, frame_times), dtype=torch.float32)
+        )
+
+        P = torch.nn.Parameter
+        fit = fit.detached("cpu")
+        grasp_target = torch.where(torch.as_tensor(contact, dtype=torch.bool), grasp_level, -grasp_level)
+        self.hand_pos0 = P(fit.hand_pos[0].clone())
+        self.hand_rot6 = P(rotation_to_6d(fit.hand_rot[0]))
+        self.grasp0 = P(grasp_target[0].reshape(()).clone())
+        control = self._fit_control(fit, contact, grasp_target, basis, dt)
+        self.control = P(control)
+        self.object_pos0 = P(fit.object_pos[0] + self._onset_offset(fit, contact, control, basis, dt))
+        self.object_rot6 = P(rotation_to_6d(fit.object_rot[0]))
+        self.object_size_raw = P(positive_inverse(fit.object_size, MIN_OBJECT_SIZE))
+        self.static_xy = P(fit.static_pos[:, :2].clone())
+        self.static_yaw = P(torch.atan2(fit.static_rot[:, 1, 0], fit.static_rot[:, 0, 0]))
+        self.static_size_raw = P(positive_inverse(fit.static_size, MIN_STATIC_SIZE))
+        self.camera_height_raw = P(positive_inverse(fit.camera_height, 0.05))
+        self.camera_elevation = P(fit.camera_elevation.clone())
+
+    def _fit_control(
+        self, fit: SceneTrajectories, contact: np.ndarray, grasp_target: torch.Tensor, basis: np.ndarray, dt: float
+    ) -> torch.Tensor:
+        """Knot velocities (knots, 7) that reproduce stage (a)'s hand motion and the contact.
+
+        Positions and the grasp signal are integrals of the spline, linear in the knots, so
+        they are fitted in least squares on their integrated basis; contact frames weigh
+        more, because the tip must be inside the object there for the grasp to engage.
+        Angular velocities are fitted to the frame-to-frame rotations.
+        """
+        spf = self.steps_per_frame
+        N = self.num_frames
+        cumulative = np.concatenate([np.zeros((1, basis.shape[1])), np.cumsum(basis, 0) * dt])[::spf]  # (N, knots)
+        ridge = 1e-6 * np.eye(basis.shape[1])
+        weight = np.sqrt(1.0 + CONTACT_FIT_WEIGHT * np.asarray(contact, dtype=float))[:, None]
+
+        def solve(design: np.ndarray, rhs: np.ndarray, w: np.ndarray | float = 1.0) -> np.ndarray:
+            design, rhs = w * design, w * rhs
+            return np.linalg.solve(design.T @ design + ridge, design.T @ rhs)
+
+        pos = fit.hand_pos.double().numpy()
+        linear = solve(cumulative, pos - pos[0], weight)
+        grasp = grasp_target.double().numpy()
+        grasp_rate = solve(cumulative, (grasp - grasp[0])[:, None])
+        R = fit.hand_rot.double()
+        omega = rotation_log(R[1:] @ R[:-1].transpose(-1, -2)).numpy() * self.fps  # (N - 1, 3)
+        mid_times = (np.arange(N - 1) + 0.5) / self.fps
+        mid_basis = natural_cubic_basis(basis.shape[1], (N - 1) / self.fps, mid_times)
+        angular = solve(mid_basis, omega)
+        return torch.as_tensor(np.concatenate([linear, angular, grasp_rate], 1), dtype=torch.float32)
+
+    def _onset_offset(
+        self, fit: SceneTrajectories, contact: np.ndarray, control: torch.Tensor, basis: np.ndarray, dt: float
+    ) -> torch.Tensor:
+        """Shift (3,) [m] of the object's start that keeps stage (a)'s tip-to-object offset at
+        the first contact frame.
+
+        The spline only approximates stage (a)'s hand path, and millimetres decide whether
+        the tip is inside the object when the grasp closes; once closed, the rigid carry
+        keeps the offset.
+        """
+        onset = np.flatnonzero(contact)
+        if len(onset) == 0:
+            return torch.zeros(3)
+        k = int(onset[0])
+        steps = k * self.steps_per_frame
+        tip = fit.hand_pos[0] + dt * torch.as_tensor(basis[:steps].sum(0), dtype=torch.float32) @ control[:, :3]
+        return tip - fit.hand_pos[k]
+
+    def cuboids(self) -> tuple[torch.Tensor, ...]:
+        """Object size (3,), static centres (K, 3), rotations (K, 3, 3) and sizes (K, 3)."""
+        static_size = positive(self.static_size_raw, MIN_STATIC_SIZE)
+        static_pos, static_rot = static_poses(self.static_xy, self.static_yaw, static_size)
+        return positive(self.object_size_raw, MIN_OBJECT_SIZE), static_pos, static_rot, static_size
+
+    def forward(self) -> PhysicalRollout:
+        """Simulate the scene: pre-roll, the video, post-roll."""
+        object_size, static_pos, static_rot, static_size = self.cuboids()
+        spf = self.steps_per_frame
+        main_velocity = self.step_basis @ self.control  # (S, 7)
+        still = lambda frames: main_velocity.new_zeros(frames * spf, 7)  # noqa: E731
+        hand_velocity = torch.cat([still(self.pre_frames), main_velocity, still(self.post_frames)])
+        out = simulate(
+            self.hand_pos0[None],
+            rotation_from_6d(self.hand_rot6)[None],
+            self.grasp0.reshape(1),
+            hand_velocity[None],
+            self.object_pos0[None],
+            rotation_from_6d(self.object_rot6)[None],
+            object_size[None],
+            static_pos[None],
+            static_rot[None],
+            static_size[None],
+            steps_per_frame=spf,
+            fps=self.fps,
+            config=self.physics,
+        )
+        video = slice(self.pre_frames, self.pre_frames + self.num_frames)
+        rollout = Rollout(**{name: value[0, video] for name, value in vars(out).items()})
+        speed = out.object_vel[0].square().sum(-1) + out.object_ang_vel[0].square().sum(-1)
+        still_velocity = torch.cat([speed[: self.pre_frames + 1], speed[self.pre_frames + self.num_frames :]])
+        frame_velocity = self.frame_basis @ self.control
+        scene = SceneTrajectories(
+            hand_pos=rollout.hand_pos,
+            hand_rot=rollout.hand_rot,
+            object_pos=rollout.object_pos,
+            object_rot=rollout.object_rot,
+            object_size=object_size,
+            static_pos=static_pos,
+            static_rot=static_rot,
+            static_size=static_size,
+            camera_height=positive(self.camera_height_raw, 0.05),
+            camera_elevation=self.camera_elevation,
+        )
+        return PhysicalRollout(scene, rollout, still_velocity, frame_velocity[:, :6].square().sum(-1))

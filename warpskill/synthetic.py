@@ -1,0 +1,368 @@
+"""Synthetic demonstrations with ground truth, for the tests, the benchmark and the demo.
+
+A scripted hand (minimum-jerk moves between waypoints, a grasp signal that rises at the
+contact onset and falls at the release) drives warpskill's own physics engine, so the
+true trajectories obey the same approximate physics the optimiser assumes. The scene is
+ray cast into exact masks, then spoiled with the errors real masks have: jittered
+boundaries, spurious blobs, missing frames and a contact signal that is off by a frame or
+flips in isolated frames.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import torch
+
+from .actions import ACTIONS, check_action
+from .camera import Intrinsics
+from .demonstration import Demonstration
+from .physics import PhysicsConfig, simulate, substeps_per_frame
+from .raycast import raycast_masks
+
+GRASP_LEVEL = 0.02  # [m] |g| of the scripted grasp signal
+TIP_DEPTH = 0.012  # [m] how deep the scripted tip enters the object
+
+
+@dataclass(frozen=True)
+class Noise:
+    """Mask and contact errors of a synthetic demonstration.
+
+    Attributes:
+        jitter: largest boundary erosion/dilation radius [px], drawn per frame and mask.
+        blob_rate: probability that a frame's mask gains a spurious blob.
+        missing_rate: probability that a frame's object mask is lost.
+        contact_shift: largest shift [frames] of the contact onset and release.
+        contact_flips: number of isolated frames whose contact flag is flipped.
+    """
+
+    jitter: int = 0
+    blob_rate: float = 0.0
+    missing_rate: float = 0.0
+    contact_shift: int = 0
+    contact_flips: int = 0
+
+
+NOISE_LEVELS = {
+    "none": Noise(),
+    "low": Noise(jitter=1, blob_rate=0.03, missing_rate=0.02, contact_shift=1),
+    "moderate": Noise(jitter=2, blob_rate=0.08, missing_rate=0.05, contact_shift=1, contact_flips=1),
+    "high": Noise(jitter=3, blob_rate=0.15, missing_rate=0.10, contact_shift=2, contact_flips=2),
+}
+
+
+@dataclass
+class _Script:
+    """A scripted scene: waypoints (time [s], tip position [m]) and everything static."""
+
+    waypoints: list[tuple[float, np.ndarray]]
+    hand_axis: np.ndarray
+    grasp_on: float
+    grasp_off: float | None
+    object_pos: np.ndarray
+    object_yaw: float
+    object_size: np.ndarray
+    static_pos: np.ndarray  # (K, 3)
+    static_yaw: np.ndarray  # (K,)
+    static_size: np.ndarray  # (K, 3)
+    camera_height: float
+    camera_elevation: float
+
+
+def make_demonstration(
+    action: str,
+    *,
+    seed: int = 0,
+    noise: str | Noise = "moderate",
+    image_size: tuple[int, int] = (240, 427),
+    fps: float = 12.0,
+    duration: float = 4.0,
+) -> Demonstration:
+    """A synthetic demonstration of ``action`` with its ground truth in ``demo.truth``.
+
+    Args:
+        action: one of :data:`warpskill.actions.ACTIONS`.
+        seed: scene randomness (sizes, placements, camera, noise).
+        noise: a name in :data:`NOISE_LEVELS` or a :class:`Noise`.
+        image_size: (H, W) of the masks [px].
+        fps: frame rate [1/s].
+        duration: video length [s].
+    """
+    check_action(action)
+    noise = NOISE_LEVELS[noise] if isinstance(noise, str) else noise
+    rng = np.random.default_rng([seed, ACTIONS.index(action)])
+    intrinsics = Intrinsics.default(*image_size)
+    for _ in range(50):
+        script = _script(action, rng, duration)
+        truth = _simulate(script, fps, duration)
+        masks = _render(truth, intrinsics)
+        if _in_view(masks):
+            break
+    else:  # pragma: no cover - the scripts are built to stay in view
+        raise RuntimeError(f"could not place a {action} scene in view")
+    truth["action"] = np.array(action)
+    truth["camera_K"] = intrinsics.K
+    truth["image_size"] = np.array(image_size)
+    contact = _noisy_contact(truth["grasped"] > 0.5, noise, rng)
+    hand, obj, static = _noisy_channels(masks, noise, rng)
+    return Demonstration.from_arrays(
+        hand, obj, contact, fps, static_mask=static, camera_K=intrinsics.K, action=action, truth=truth
+    )
+
+
+def _noisy_channels(masks: np.ndarray, noise: Noise, rng: np.random.Generator):
+    """Apply mask noise per channel: (hand (N,H,W), object (N,H,W), statics (K,N,H,W))."""
+    hand = _noisy_masks(masks[:, 0], noise, rng, drop=False)
+    obj = _noisy_masks(masks[:, 1], noise, rng, drop=True)
+    statics = [_noisy_masks(masks[:, j], noise, rng, drop=False) for j in range(2, masks.shape[1])]
+    return hand, obj, (np.stack(statics) if statics else None)
+
+
+def _script(action: str, rng: np.random.Generator, duration: float) -> _Script:
+    """Scene and hand waypoints for one action (world frame of FORMATS.md)."""
+    u = rng.uniform
+    size = np.array([u(0.05, 0.11), u(0.05, 0.11), u(0.05, 0.12)])
+    yaw = u(-0.3, 0.3)
+    centre = np.array([u(-0.08, 0.08), u(0.55, 0.7), size[2] / 2])
+    static_pos = np.zeros((0, 3))
+    static_size = np.zeros((0, 3))
+    static_yaw = np.zeros(0)
+    if action.startswith("put_"):
+        s_size = np.array([u(0.10, 0.18), u(0.10, 0.16), u(0.04, 0.12) if action == "put_onto" else u(0.08, 0.15)])
+        side = rng.choice([-1.0, 1.0])
+        static_pos = np.array([[centre[0] - side * 0.1, centre[1] + u(0.0, 0.05), s_size[2] / 2]])
+        static_size = s_size[None]
+        static_yaw = np.array([u(-0.2, 0.2)])
+        centre[0] += side * 0.12
+        centre[1] -= 0.05
+
+    # Grasp points: the side facing the motion's start for push/pull, the top otherwise.
+    t_on, t_off, t_end = 0.3 * duration, 0.72 * duration, duration
+    direction = 1.0 if action.endswith("left_to_right") else -1.0
+    if action.startswith("pull_") or action.startswith("push_"):
+        pushing = action.startswith("push_")
+        # Pulling drags the object from the side it moves towards; pushing presses from behind.
+        face = -direction if pushing else direction
+        axis = np.array([face * 1.0, u(-0.5, -0.2), u(0.5, 0.9)])
+        grasp = centre + np.array([face * (size[0] / 2 - TIP_DEPTH), 0.0, u(-0.2, 0.2) * size[2]])
+        path = [grasp + np.array([direction * u(0.15, 0.25), 0.0, 0.0])]
+        yaw = 0.0
+    else:
+        axis = np.array([u(-0.4, 0.4), u(-0.7, -0.3), 1.0])
+        grasp = centre + np.array([0.0, 0.0, size[2] / 2 - TIP_DEPTH])
+        lift = grasp + np.array([0.0, 0.0, u(0.12, 0.18)])
+        if action == "pick_up":
+            path = [lift]
+            t_off = None
+        else:
+            target = _put_target(action, static_pos[0], static_size[0], size, rng)
+            above = target + np.array([0.0, 0.0, 0.08])
+            lowered = target + np.array([0.0, 0.0, size[2] / 2 - TIP_DEPTH + 0.004])
+            path = [lift, np.array([above[0], above[1], lift[2]]), lowered]
+    axis = axis / np.linalg.norm(axis)
+    start = grasp + 0.15 * axis + np.array([0.0, 0.0, 0.05])
+    waypoints = [(0.0, start), (t_on - 0.05 * duration, grasp), (t_on + 0.04 * duration, grasp)]
+    action_end = (t_off if t_off is not None else t_end) - 0.03 * duration
+    times = np.linspace(t_on + 0.04 * duration, action_end, len(path) + 1)[1:]
+    waypoints += list(zip(times, path))
+    if t_off is not None:
+        leave = path[-1] + 0.15 * axis + np.array([0.0, 0.0, 0.05])
+        waypoints += [(t_off + 0.04 * duration, path[-1]), (t_end - 0.05 * duration, leave)]
+    return _Script(
+        waypoints=waypoints,
+        hand_axis=axis,
+        grasp_on=t_on,
+        grasp_off=t_off,
+        object_pos=centre,
+        object_yaw=yaw,
+        object_size=size,
+        static_pos=static_pos,
+        static_yaw=static_yaw,
+        static_size=static_size,
+        camera_height=u(0.38, 0.52),
+        camera_elevation=u(0.5, 0.75),
+    )
+
+
+def _put_target(action: str, s_pos: np.ndarray, s_size: np.ndarray, size: np.ndarray, rng) -> np.ndarray:
+    """Where a put action leaves the object's centre, relative to the static box."""
+    gap = rng.uniform(0.02, 0.05)
+    if action == "put_onto":
+        return np.array([s_pos[0], s_pos[1], s_size[2] + size[2] / 2])
+    if action == "put_behind":
+        offset = np.array([0.0, s_size[1] / 2 + gap + size[1] / 2, 0.0])
+    elif action == "put_in_front_of":
+        offset = np.array([0.0, -(s_size[1] / 2 + gap + size[1] / 2), 0.0])
+    else:  # put_next_to
+        offset = np.array([rng.choice([-1.0, 1.0]) * (s_size[0] / 2 + gap + size[0] / 2), 0.0, 0.0])
+    return np.array([s_pos[0], s_pos[1], size[2] / 2]) + offset
+
+
+def _min_jerk(waypoints: list[tuple[float, np.ndarray]], times: np.ndarray) -> np.ndarray:
+    """Tip positions (T, 3) at ``times`` along minimum-jerk moves between waypoints."""
+    out = np.empty((len(times), 3))
+    for i, t in enumerate(times):
+        k = np.searchsorted([w[0] for w in waypoints], t, side="right") - 1
+        if k >= len(waypoints) - 1:
+            out[i] = waypoints[-1][1]
+            continue
+        (t0, x0), (t1, x1) = waypoints[k], waypoints[k + 1]
+        tau = np.clip((t - t0) / (t1 - t0), 0.0, 1.0)
+        out[i] = x0 + (x1 - x0) * (10 * tau**3 - 15 * tau**4 + 6 * tau**5)
+    return out
+
+
+def _grasp_signal(script: _Script, times: np.ndarray, ramp: float = 0.1) -> np.ndarray:
+    """Scripted grasp signal [m] at ``times``: -GRASP_LEVEL, ramping up at the grasp and down at the release."""
+    up = np.clip((times - script.grasp_on) / ramp, 0.0, 1.0)
+    down = np.clip((times - script.grasp_off) / ramp, 0.0, 1.0) if script.grasp_off is not None else 0.0
+    return GRASP_LEVEL * (2.0 * (up - down) - 1.0)
+
+
+def _hand_rotation(axis: np.ndarray) -> np.ndarray:
+    """A hand rotation whose local z (tip to arm) is ``axis``."""
+    helper = np.array([0.0, 0.0, 1.0]) if abs(axis[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x = np.cross(helper, axis)
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(axis, x), axis], -1)
+
+
+def _yaw(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def scripted_inputs(script: _Script, fps: float, duration: float, dtype=torch.float64) -> dict[str, object]:
+    """Keyword arguments of :func:`warpskill.physics.simulate` (batch of one) for a script."""
+    physics = PhysicsConfig()
+    spf = substeps_per_frame(fps, physics)
+    num_frames = int(round(duration * fps)) + 1
+    dt = 1.0 / (fps * spf)
+    edges = np.arange((num_frames - 1) * spf + 1) * dt
+    tip = _min_jerk(script.waypoints, edges)
+    grasp = _grasp_signal(script, edges)
+    velocity = np.concatenate([np.diff(tip, axis=0), np.zeros((len(edges) - 1, 3)), np.diff(grasp)[:, None]], 1) / dt
+    K = len(script.static_pos)
+    t = lambda a: torch.as_tensor(np.asarray(a), dtype=dtype)[None]  # noqa: E731
+    return dict(
+        hand_pos0=t(tip[0]),
+        hand_rot0=t(_hand_rotation(script.hand_axis)),
+        grasp0=t(grasp[:1])[0],
+        hand_vel=t(velocity),
+        object_pos0=t(script.object_pos),
+        object_rot0=t(_yaw(script.object_yaw)),
+        object_size=t(script.object_size),
+        static_pos=t(script.static_pos.reshape(K, 3)),
+        static_rot=t(_static_rotations(script)),
+        static_size=t(script.static_size.reshape(K, 3)),
+        steps_per_frame=spf,
+        fps=fps,
+        config=physics,
+    )
+
+
+def scripted_scene(action: str, seed: int = 0, duration: float = 4.0) -> _Script:
+    """The scripted scene of ``action`` that :func:`make_demonstration` starts from (before view checks)."""
+    check_action(action)
+    return _script(action, np.random.default_rng([seed, ACTIONS.index(action)]), duration)
+
+
+def _static_rotations(script: _Script) -> np.ndarray:
+    """(K, 3, 3) rotations of the scripted static cuboids (K may be 0)."""
+    return np.array([_yaw(a) for a in script.static_yaw]).reshape(len(script.static_yaw), 3, 3)
+
+
+def _simulate(script: _Script, fps: float, duration: float) -> dict[str, np.ndarray]:
+    """Run the engine on a script; returns the ground truth reconstruction fields."""
+    inputs = scripted_inputs(script, fps, duration)
+    out = simulate(**inputs)
+    num_frames = out.hand_pos.shape[1]
+    K = len(script.static_pos)
+    n = lambda x: x[0].detach().numpy()  # noqa: E731
+    return {
+        "fps": np.array(fps),
+        "t": np.arange(num_frames) / fps,
+        "hand_pos": n(out.hand_pos),
+        "hand_rot": n(out.hand_rot),
+        "grasp": n(out.grasp),
+        "grasped": n(out.grasped),
+        "object_pos": n(out.object_pos),
+        "object_rot": n(out.object_rot),
+        "object_size": script.object_size,
+        "static_pos": script.static_pos.reshape(K, 3),
+        "static_rot": _static_rotations(script),
+        "static_size": script.static_size.reshape(K, 3),
+        "camera_elevation": np.array(script.camera_elevation),
+        "camera_height": np.array(script.camera_height),
+        "loss": np.array(0.0),
+    }
+
+
+def _render(truth: dict[str, np.ndarray], intrinsics: Intrinsics) -> np.ndarray:
+    """Exact visible masks (N, 2 + K, H, W) of the true scene."""
+    N = len(truth["t"])
+    K = len(truth["static_pos"])
+    cuboid_pos = np.concatenate([truth["object_pos"][:, None], np.broadcast_to(truth["static_pos"], (N, K, 3))], 1)
+    cuboid_rot = np.concatenate(
+        [truth["object_rot"][:, None], np.broadcast_to(truth["static_rot"], (N, K, 3, 3))], 1
+    )
+    cuboid_size = np.concatenate([truth["object_size"][None], truth["static_size"]], 0)
+    return raycast_masks(
+        truth["hand_pos"],
+        truth["hand_rot"],
+        cuboid_pos,
+        cuboid_rot,
+        cuboid_size,
+        float(truth["camera_height"]),
+        float(truth["camera_elevation"]),
+        intrinsics,
+    )
+
+
+def _in_view(masks: np.ndarray, margin: int = 2) -> bool:
+    """Whether every cuboid stays inside the image (not touching its border) and is seen."""
+    cuboids = masks[:, 1:]
+    border = np.zeros(masks.shape[-2:], bool)
+    border[:margin], border[-margin:], border[:, :margin], border[:, -margin:] = True, True, True, True
+    touches = (cuboids & border).any()
+    seen = cuboids.reshape(*cuboids.shape[:2], -1).any(-1)
+    return not touches and seen[:, 0].mean() > 0.8 and masks[:, 0].any()
+
+
+def _noisy_masks(masks: np.ndarray, noise: Noise, rng: np.random.Generator, *, drop: bool) -> np.ndarray:
+    """Masks (N, H, W) with jittered boundaries, spurious blobs and (if ``drop``) lost frames."""
+    out = masks.astype(np.uint8)
+    H, W = out.shape[1:]
+    for k in range(len(out)):
+        if noise.jitter:
+            r = int(rng.integers(-noise.jitter, noise.jitter + 1))
+            if r:
+                kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * abs(r) + 1, 2 * abs(r) + 1))
+                out[k] = (cv2.dilate if r > 0 else cv2.erode)(out[k], kernel)
+        if rng.random() < noise.blob_rate:
+            centre = (int(rng.integers(0, W)), int(rng.integers(0, H)))
+            axes = (int(rng.integers(2, 8)), int(rng.integers(2, 8)))
+            cv2.ellipse(out[k], centre, axes, float(rng.uniform(0, 180)), 0, 360, 1, -1)
+        if drop and rng.random() < noise.missing_rate:
+            out[k] = 0
+    if not out.any():  # never lose every frame of a mask
+        out = masks.astype(np.uint8)
+    return out.astype(bool)
+
+
+def _noisy_contact(contact: np.ndarray, noise: Noise, rng: np.random.Generator) -> np.ndarray:
+    """A contact signal whose onset and release move by up to ``contact_shift`` frames, with flips."""
+    out = contact.copy()
+    on = np.flatnonzero(contact)
+    if noise.contact_shift and len(on):
+        first = int(np.clip(on[0] + rng.integers(-noise.contact_shift, noise.contact_shift + 1), 0, len(out) - 1))
+        last = int(np.clip(on[-1] + rng.integers(-noise.contact_shift, noise.contact_shift + 1), first, len(out) - 1))
+        out[:] = False
+        out[first : last + 1] = True
+    for k in rng.choice(len(out), size=noise.contact_flips, replace=False):
+        out[k] = ~out[k]
+    if not out.any():
+        out = contact.copy()
+    return out

@@ -1,0 +1,27 @@
+"""Loss weights of both optimisation stages, in one place."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class LossWeights:
+    """Weights of the optimisation losses (the paper's defaults where it gives them).
+
+    Perceptual weights multiply a per-frame mean dIoU; the others multiply per-frame means
+    of squared quantities in SI units (m, m/s, rad/s).
+    """
+
+    hand: float = 1.0  #: perceptual, hand
+    object: float = 10.0  #: perceptual, manipulated object
+    static: float = 2.0  #: perceptual, each static object
+    hand_velocity: float = 1e-3  #: |v_h|^2 + |w_h|^2 per frame
+    invisible_object_velocity: float = 1.0  #: |V_o|^2 + |W_o|^2 in frames without an object mask
+    contact_distance: float = 1e4  #: tip outside the object in contact frames [m^-2]
+    grasp: float = 1e3  #: grasp signal of the wrong sign [m^-2]
+    grasp_margin: float = 0.008  #: [m] depth of the tip in the object, and |g|, asked for (8 tau: s > 0.9996)
+    stability: float = 1.0  #: object speed before and after the video
+    smoothness: float = 1e-4  #: stage (a): squared accelerations
+    resting: float = 0.1  #: stage (a): object speed without contact
+    penetration: float = 1e3  #: stage (a): below-ground depth
