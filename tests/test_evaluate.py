@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from warpskill.actions import ACTIONS
-from warpskill.evaluate import Evaluation, evaluate, success_table
+from warpskill.evaluation import Evaluation, evaluate, success_table
 from warpskill.reconstruction import Reconstruction
 
 N = 8

@@ -6,7 +6,7 @@ import torch
 
 from warpskill.distances import box_signed_distance, support_height
 from warpskill.initialize import _far_from_contact, positive, positive_inverse
-from warpskill.optimize import majority_filter
+from warpskill.optimization import majority_filter
 from warpskill.rotations import rotation_from_6d, rotation_log, rotation_to_6d, yaw_rotation
 
 
@@ -55,6 +55,8 @@ def test_majority_filter_removes_isolated_flips_only():
     signal = np.array([0, 0, 1, 0, 0, 0, 1, 1, 1, 0, 1, 1, 1, 0, 0, 0], bool)
     filtered = majority_filter(signal)
     assert filtered.astype(int).tolist() == [0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 0, 0, 0]
+    ends = np.array([1, 0, 0, 0, 1, 1, 1, 0, 0, 0, 1], bool)  # flips at the first and last frame go too
+    assert majority_filter(ends).astype(int).tolist() == [0, 0, 0, 0, 1, 1, 1, 0, 0, 0, 0]
     lone = np.array([0, 0, 1, 0, 0], bool)  # a single contact frame is kept rather than erased
     assert majority_filter(lone).tolist() == lone.tolist()
 

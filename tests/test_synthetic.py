@@ -5,7 +5,7 @@ import pytest
 
 from warpskill.actions import ACTIONS
 from warpskill.demonstration import Demonstration
-from warpskill.evaluate import evaluate
+from warpskill.evaluation import evaluate
 from warpskill.reconstruction import Reconstruction
 from warpskill.synthetic import NOISE_LEVELS, make_demonstration
 

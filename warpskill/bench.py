@@ -144,8 +144,8 @@ def bench_synthetic(
     Also prints the median camera-frame object-centre and size errors and the time per
     demonstration.
     """
-    from .evaluate import evaluate, success_table
-    from .optimize import optimize
+    from .evaluation import evaluate, success_table
+    from .optimization import optimize
     from .synthetic import make_demonstration
 
     actions = list(actions or ACTIONS)

@@ -77,9 +77,10 @@ def _add_optimise_options(parser: argparse.ArgumentParser) -> None:
 
 def _reconstruct(demo, out: Path, args, *, init_only: bool = False, pictures: bool = True):
     """Optimise ``demo`` into ``out`` (resuming its checkpoint), write the npz and pictures."""
-    from .optimize import optimize
+    from .optimization import optimize, resolve_device
     from .pictures import save_pictures
 
+    resolve_device(args.device)
     out.mkdir(parents=True, exist_ok=True)
     recon = optimize(
         demo,
@@ -99,7 +100,7 @@ def _reconstruct(demo, out: Path, args, *, init_only: bool = False, pictures: bo
 
 
 def _report(recon, action) -> None:
-    from .evaluate import evaluate
+    from .evaluation import evaluate
 
     if action:
         result = evaluate(recon, action)
@@ -129,7 +130,7 @@ def _optimize(args) -> int:
 
 
 def _evaluate(args) -> int:
-    from .evaluate import evaluate
+    from .evaluation import evaluate
     from .reconstruction import Reconstruction
 
     recon = Reconstruction.load(args.reconstruction)

@@ -52,6 +52,7 @@ class OptimizeConfig:
     plateau_patience: int = 10  #: iterations without improvement before the lr is halved
     plateau_factor: float = 0.5
     min_lr_ratio: float = 0.1  #: stop once the lr falls below this fraction of its start
+    warmup_iterations: int = 10  #: the learning rate ramps up linearly over these iterations
     checkpoint_every: int = 25  #: iterations between checkpoint writes
     weights: LossWeights = field(default_factory=LossWeights)
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)
@@ -87,7 +88,7 @@ def optimize(
     config = config or OptimizeConfig()
     if iterations is not None:
         config = replace(config, iterations=int(iterations))
-    device = torch.device(device or "cpu")
+    device = resolve_device(device)
     torch.manual_seed(seed)
     store = _Checkpoint(checkpoint, _fingerprint(demo, config, seed))
 
@@ -143,14 +144,33 @@ def optimize(
     return _reconstruction(demo, result.scene, result.rollout.grasp, result.rollout.grasped, stage_b_loss)
 
 
+def resolve_device(device: str | torch.device | None) -> torch.device:
+    """The torch device named by ``device`` (default CPU).
+
+    Raises:
+        ValueError: an unknown device, or CUDA when this torch or machine has none.
+    """
+    try:
+        resolved = torch.device(device or "cpu")
+    except RuntimeError:
+        raise ValueError(f"unknown device {device!r}: use 'cpu' or 'cuda'") from None
+    if resolved.type == "cuda" and not torch.cuda.is_available():
+        raise ValueError(f"device {device!r}: CUDA is not available to this torch build or machine")
+    if resolved.type not in ("cpu", "cuda"):
+        raise ValueError(f"device {device!r}: warpskill runs on 'cpu' or 'cuda'")
+    return resolved
+
+
 def majority_filter(signal: np.ndarray, window: int = 5) -> np.ndarray:
     """Per-frame majority vote of a boolean signal over ``window`` frames (the paper's code:
-    5 frames, 3 votes), which removes isolated flips; the ends use the frames there are."""
+    5 frames, 3 votes), which removes isolated flips. Near the ends the vote is over the
+    frames that exist. A signal the vote would erase entirely is returned unchanged.
+    """
     signal = np.asarray(signal, dtype=bool)
-    half = window // 2
-    padded = np.pad(signal.astype(int), half, mode="edge")
-    votes = np.convolve(padded, np.ones(window, dtype=int), mode="valid")
-    filtered = votes > half
+    kernel = np.ones(window, dtype=int)
+    votes = np.convolve(signal.astype(int), kernel, mode="same")
+    frames = np.convolve(np.ones(len(signal), dtype=int), kernel, mode="same")
+    filtered = 2 * votes > frames
     return filtered if filtered.any() else signal
 
 
@@ -238,8 +258,12 @@ def _minimise(
         value = loss.item()
         if value < best_loss:
             best_loss, best_state = value, _copy_state(module)
-        optimizer.step()
         lr_before = optimizer.param_groups[0]["lr"]
+        # Warm-up: Adam's first steps move every parameter by about lr, whatever its gradient,
+        # which can push the hand out of a grasp that only just holds.
+        optimizer.param_groups[0]["lr"] = lr_before * min(1.0, (iteration + 1) / config.warmup_iterations)
+        optimizer.step()
+        optimizer.param_groups[0]["lr"] = lr_before
         schedule.step(value)
         if optimizer.param_groups[0]["lr"] < lr_before:
             module.load_state_dict(best_state)
@@ -249,6 +273,9 @@ def _minimise(
         if iteration % config.checkpoint_every == 0:
             store.save(label, module, optimizer, schedule, best_loss, best_state, iteration)
     bar.close()
+    if best_loss == float("inf"):  # no iteration ran: report the loss where the parameters are
+        with torch.no_grad():
+            best_loss = float(sum(objective().values()))
     module.load_state_dict(best_state)
     store.save(label, module, optimizer, schedule, best_loss, best_state, iterations)
     return best_loss
@@ -268,9 +295,13 @@ class _Checkpoint:
         if self.path is not None and self.path.exists():
             try:
                 saved = torch.load(self.path, map_location="cpu", weights_only=True)
-            except Exception as error:  # a truncated or foreign file: start afresh, keep it aside
-                raise ValueError(f"checkpoint {self.path} is not readable ({error}); move it away to start afresh") from error
-            if saved.get("fingerprint") == fingerprint:
+            except Exception as error:
+                raise ValueError(
+                    f"checkpoint {self.path} is not readable ({type(error).__name__}); move it away to start afresh"
+                ) from None
+            if not (isinstance(saved, dict) and {"fingerprint", "stages"} <= saved.keys()):
+                raise ValueError(f"checkpoint {self.path} is not a warpskill checkpoint; move it away to start afresh")
+            if saved["fingerprint"] == fingerprint:
                 self.stages = saved["stages"]
 
     def load(self, stage: str) -> dict | None:
