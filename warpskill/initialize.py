@@ -162,8 +162,16 @@ def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, fx: float) -> float
     return float(np.median(depths)) if depths else None
 
 
+OBJECT_DEPTH_HYPOTHESES = ("resting depth", "on the ground")
+
+
 def initial_guess(
-    targets: np.ndarray, contact: np.ndarray, intrinsics: Intrinsics, num_static: int
+    targets: np.ndarray,
+    contact: np.ndarray,
+    intrinsics: Intrinsics,
+    num_static: int,
+    *,
+    object_depth: str = "resting depth",
 ) -> SceneTrajectories:
     """A rough scene read off the masks' geometry, before any optimisation.
 
@@ -174,12 +182,20 @@ def initial_guess(
     object's depth, its axis pointing from there towards the rest of the hand mask and the
     camera.
 
+    Where the object is after it was first seen is ambiguous from one frame's mask (the
+    paper's Fig. 1: on top of a box, or behind it on the ground), so ``object_depth``
+    names the hypothesis: it keeps its ``"resting depth"``, or stands ``"on the ground"``
+    below its mask's bottom edge in every frame.
+
     Args:
         targets: (N, 2 + K, h, w) masks at the working resolution.
         contact: (N,) bool.
         intrinsics: working-resolution intrinsics.
         num_static: K.
+        object_depth: one of :data:`OBJECT_DEPTH_HYPOTHESES`.
     """
+    if object_depth not in OBJECT_DEPTH_HYPOTHESES:
+        raise ValueError(f"object_depth must be one of {OBJECT_DEPTH_HYPOTHESES}, not {object_depth!r}")
     N = targets.shape[0]
     K = intrinsics.K
     e0 = INITIAL_CAMERA_ELEVATION
@@ -202,12 +218,11 @@ def initial_guess(
         t = min(t, 3.0)
         return centre + t * ray, t  # t is the camera depth (rays have unit z in camera axes)
 
-    def cuboid_from_masks(geom: _MaskGeometry) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def cuboid_from_masks(geom: _MaskGeometry, on_ground: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per-frame centres, a size and visibility of an upright cuboid seen in ``geom``.
 
         Where it is first seen the cuboid stands on the ground below its mask's bottom
-        edge; later it keeps that camera depth (a carried object is not on the ground, and
-        its mask's bottom edge says nothing about where the ground is).
+        edge; later it stands there again (``on_ground``) or keeps that camera depth.
         """
         first = np.flatnonzero(geom.visible)[0]
         u0, v0, u1, v1 = geom.box[first]
@@ -216,18 +231,22 @@ def initial_guess(
         sizes = []
         for k in np.flatnonzero(geom.visible):
             u0, v0, u1, v1 = geom.box[k]
-            width = (u1 - u0) * rest_depth / K[0, 0]
-            height = np.clip((v1 - v0) * rest_depth / K[1, 1] * 0.6, 0.03, 0.4)
+            bottom_pixel = np.array([0.5 * (u0 + u1), v1])
+            bottom, depth = ground_point(bottom_pixel)
+            if not on_ground:
+                depth = rest_depth
+                bottom = centre + depth * _rays(bottom_pixel[None], K, R_wc)[0]
+            width = (u1 - u0) * depth / K[0, 0]
+            height = np.clip((v1 - v0) * depth / K[1, 1] * 0.6, 0.03, 0.4)
             sizes.append([width, width, height])
-            bottom = centre + rest_depth * _rays(np.array([[0.5 * (u0 + u1), v1]]), K, R_wc)[0]
             pos[k] = bottom + np.array([0.0, 0.5 * width, 0.5 * height])
         size = np.clip(np.median(np.array(sizes), 0), 0.03, 0.5)
         return _fill_missing(pos, geom.visible), size, np.asarray(geom.visible)
 
-    object_pos, object_size, _ = cuboid_from_masks(object_geom)
+    object_pos, object_size, _ = cuboid_from_masks(object_geom, object_depth == "on the ground")
     static_pos, static_size = [], []
     for j in range(num_static):
-        pos, size, visible = cuboid_from_masks(_MaskGeometry(targets[:, 2 + j]))
+        pos, size, visible = cuboid_from_masks(_MaskGeometry(targets[:, 2 + j]), True)
         static_pos.append(pos[np.flatnonzero(visible)[0]])
         static_size.append(size)
 

@@ -1,7 +1,8 @@
 """``warpskill.optimize``: a demonstration in, physically admissible trajectories out.
 
-Two stages, as in the paper: (a) a physics-free fit of per-frame poses (:mod:`.initialize`)
-gives a first camera and trajectories; (b) the physics stage (:mod:`.physical_scene`)
+Two stages, as in the paper: (a) a physics-free fit of per-frame poses (:mod:`.initialize`),
+from each of two hypotheses about the object's depth (the lower loss wins), gives a first
+camera and trajectories; (b) the physics stage (:mod:`.physical_scene`)
 optimises the initial states, the hand's velocity spline, the sizes and the camera through
 the Warp engine. Both use Adam (amsgrad) with a reduce-on-plateau schedule that returns to
 the best parameters whenever it lowers the learning rate.
@@ -23,6 +24,7 @@ from .demonstration import Demonstration
 from .distances import box_signed_distance
 from .losses import MaskTargets
 from .initialize import (
+    OBJECT_DEPTH_HYPOTHESES,
     InitialParameters,
     SceneTrajectories,
     initial_guess,
@@ -100,17 +102,22 @@ def optimize(
     contact = torch.as_tensor(contact_signal, dtype=torch.float32, device=device)
     weights, sigma = config.weights, config.sigma
 
-    initial = InitialParameters(initial_guess(masks.cpu().numpy(), contact_signal, intrinsics, demo.num_static)).to(device)
-    stage_a_loss = _minimise(
-        initial,
-        lambda: initial_objective(initial.scene(), targets, contact, intrinsics, demo.fps, weights, sigma),
-        iterations=config.init_iterations,
-        learning_rate=config.init_learning_rate,
-        config=config,
-        progress=progress,
-        label="initialisation",
-        store=store,
-    )
+    stage_a_loss, initial = float("inf"), None
+    for hypothesis in OBJECT_DEPTH_HYPOTHESES:
+        guess = initial_guess(masks.cpu().numpy(), contact_signal, intrinsics, demo.num_static, object_depth=hypothesis)
+        candidate = InitialParameters(guess).to(device)
+        loss = _minimise(
+            candidate,
+            lambda: initial_objective(candidate.scene(), targets, contact, intrinsics, demo.fps, weights, sigma),
+            iterations=config.init_iterations,
+            learning_rate=config.init_learning_rate,
+            config=config,
+            progress=progress,
+            label=f"initialisation ({hypothesis})",
+            store=store,
+        )
+        if loss < stage_a_loss:
+            stage_a_loss, initial = loss, candidate
     fit = initial.scene().detached()
     if init_only:
         grasp = (2 * contact - 1) * weights.grasp_margin
