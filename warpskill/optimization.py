@@ -273,7 +273,9 @@ def _minimise(
         optimizer.param_groups[0]["lr"] = lr_before
         schedule.step(value)
         if optimizer.param_groups[0]["lr"] < lr_before:
+            # Back to the best parameters, and forget the momentum that led away from them.
             module.load_state_dict(best_state)
+            optimizer.state.clear()
         iteration += 1
         bar.update(1)
         bar.set_postfix(loss=f"{value:.4f}", best=f"{best_loss:.4f}", lr=f"{optimizer.param_groups[0]['lr']:.1e}")
