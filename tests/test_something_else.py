@@ -1,0 +1,115 @@
+"""Something-Else boxes + phases into demonstrations: the dev annotations, messy and malformed files."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from warpskill.cli import main
+from warpskill.demonstration import DemonstrationError
+from warpskill.something_else import box_masks, read_something_else, something_else_demonstration
+
+ROOT = Path(__file__).resolve().parents[1]
+DEV = next((p / "data" / "something_else_dev" for p in (ROOT / "shared", ROOT.parent / "shared")
+            if (p / "data" / "something_else_dev").is_dir()), None)
+
+
+def _label(name, box, category="thing"):
+    x1, y1, x2, y2 = box
+    return {"box2d": {"x1": x1, "y1": y1, "x2": x2, "y2": y2}, "category": category, "gt_annotation": name}
+
+
+def _write(tmp_path, frames, phases="1-2,3-6,7-8", action="push_left_to_right", vid="7"):
+    entries = [{"name": f"{vid}/{k:04d}.jpg", "labels": labels, "gt_placeholders": ["cup", "box"]}
+               for k, labels in frames.items()]
+    (tmp_path / "a.json").write_text(json.dumps({vid: entries}))
+    (tmp_path / "p.csv").write_text(f"video_id,action_id,approach,action,leave\n{vid},1,{phases.replace(',', ',')}\n")
+    (tmp_path / "x.csv").write_text(f"video_id,action\n{vid},{action}\n")
+    return tmp_path / "a.json", tmp_path / "p.csv", tmp_path / "x.csv"
+
+
+def _messy():
+    hand, cup = (10, 10, 40, 40), (100, 100, 140, 130)
+    frames = {k: [_label("object hand", hand, "hand"), _label("object 0", cup, "cup")] for k in range(1, 9)}
+    frames[2].append(_label("object hand", (300, 10, 330, 40), "hand"))  # a second hand box, far away
+    frames[4] = [_label("object 0", cup, "cup")]  # hand missing in frame 4: interpolated
+    del frames[5]  # frame 5 absent from the file: interpolated
+    frames[6] = [_label("object hand", hand, "hand"), _label("object x", cup, "cup")]  # object under another name
+    frames[7].append(_label("object 9x", (0, 0, 5, 5), "lamp"))  # unknown label and category: dropped
+    return frames
+
+
+def test_messy_annotations_are_handled_and_reported(tmp_path):
+    video = read_something_else(*_write(tmp_path, _messy()))["7"]
+    demo, notes = something_else_demonstration(video)
+    assert demo.num_frames == 8 and demo.action == "push_left_to_right"
+    assert demo.contact.astype(int).tolist() == [0, 0, 1, 1, 1, 1, 0, 0]
+    assert demo.hand_mask.any(axis=(1, 2)).all()  # frames 4-5 interpolated
+    assert not demo.hand_mask[1, :, 250:].any()  # the far second box was not kept
+    assert demo.object_mask[5].any()  # 'object x' read as object 0 by its category
+    text = "\n".join(notes)
+    for expected in ("several boxes in frame(s) 2", "interpolated in frame(s) 4-5", "frame(s) 5 not in the annotations",
+                     "'object x' ('cup') read as 'object 0'", "dropped a box labelled 'object 9x'"):
+        assert expected in text, (expected, text)
+
+
+def test_long_gaps_are_not_visible(tmp_path):
+    frames = _messy()
+    for k in (3, 4, 5, 6):
+        frames[k] = [label for label in frames.get(k, []) if label["gt_annotation"] != "object hand"]
+    demo, notes = something_else_demonstration(read_something_else(*_write(tmp_path, frames))["7"])
+    assert not demo.hand_mask[2:6].any() and "hand: no box in frame(s) 3-6" in "\n".join(notes)
+
+
+def test_box_shapes():
+    boxes = np.array([[10.0, 20.0, 50.0, 40.0], [np.nan] * 4])
+    ellipse, rectangle = box_masks(boxes, (60, 80)), box_masks(boxes, (60, 80), "rectangle")
+    assert rectangle[0].sum() == 40 * 20 and not ellipse[1].any()
+    assert abs(ellipse[0].sum() / rectangle[0].sum() - np.pi / 4) < 0.02
+    with pytest.raises(ValueError, match="shape"):
+        box_masks(boxes, (60, 80), "star")
+
+
+@pytest.mark.parametrize("field, value, match", [
+    ("phases", "1-2,x-6,7-8", "line 2: phase 'x-6'"),
+    ("phases", "1-2,6-3,7-8", "phase '6-3'"),
+    ("action", "juggle", "line 2: unknown action|line 2: .*juggle"),
+])
+def test_malformed_files_name_the_file_and_line(tmp_path, field, value, match):
+    paths = _write(tmp_path, _messy(), **{field: value})
+    with pytest.raises(DemonstrationError, match=match) as error:
+        read_something_else(*paths)
+    assert str(tmp_path) in str(error.value)
+
+
+def test_malformed_json_and_entries(tmp_path):
+    paths = _write(tmp_path, _messy())
+    paths[0].write_text("{oops")
+    with pytest.raises(DemonstrationError, match="a.json: not valid JSON"):
+        read_something_else(*paths)
+    paths[0].write_text(json.dumps({"7": [{"name": "7/0001.jpg"}]}))
+    with pytest.raises(DemonstrationError, match="video 7: frame entry 0: missing key 'labels'"):
+        something_else_demonstration(read_something_else(*paths)["7"])
+    paths = _write(tmp_path, _messy(), phases="1-8,-,-")
+    with pytest.raises(DemonstrationError, match="video 7: no action phase"):
+        something_else_demonstration(read_something_else(*paths)["7"])
+
+
+def test_bench_reports_a_failing_video_and_goes_on(tmp_path, capsys):
+    paths = _write(tmp_path, _messy(), phases="1-8,-,-")
+    code = main(["bench", "something-else", "--annotations", str(paths[0]), "--phases", str(paths[1]),
+                 "--actions", str(paths[2]), "-o", str(tmp_path / "out")])
+    out = capsys.readouterr().out
+    assert code == 0 and "ERROR DemonstrationError: video 7: no action phase" in out and "0/1" in out
+
+
+@pytest.mark.skipif(DEV is None, reason="the shared development data is not next to the repository")
+def test_the_development_videos_all_load():
+    videos = read_something_else(DEV / "annotations.json", DEV / "phases.csv", DEV / "actions.csv")
+    assert len(videos) == 18
+    for video in videos.values():
+        demo, notes = something_else_demonstration(video)
+        assert demo.action == video.action and demo.contact.sum() == np.diff(video.phases["action"]) + 1
+        two_objects = video.action.startswith("put")
+        assert demo.num_static == int(two_objects)
