@@ -7,6 +7,7 @@ The public API, loaded on first use (so the command line starts fast):
 - metric: :func:`evaluate`
 - engine: :func:`simulate`, :class:`PhysicsConfig`, :func:`render_silhouettes`
 - synthetic data: :func:`make_demonstration`
+- robot (extra ``warpskill[robot]``): :func:`retarget`, :func:`replay`, :class:`RobotPlan`
 """
 
 from __future__ import annotations
@@ -30,6 +31,10 @@ _EXPORTS = {
     "PhysicsConfig": "physics",
     "render_silhouettes": "render",
     "make_demonstration": "synthetic",
+    "retarget": "robot.retargeting",
+    "replay": "robot.replaying",
+    "RobotPlan": "robot.plan",
+    "PlanError": "robot.plan",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -1,0 +1,69 @@
+"""Replaying Panda plans in MuJoCo (issue 5): ground-truth reconstructions succeed; the CLI writes replay.npz."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("placo")
+pytest.importorskip("mujoco")
+from warpskill.cli import main  # noqa: E402
+from warpskill.reconstruction import FIELD_SHAPES, Reconstruction  # noqa: E402
+from warpskill.synthetic import make_demonstration  # noqa: E402
+
+robot = pytest.importorskip("warpskill.robot")
+from warpskill.robot.model import RobotModelError, panda_description_dir  # noqa: E402
+
+try:
+    panda_description_dir()
+except RobotModelError as error:  # pragma: no cover - depends on the environment
+    pytest.skip(str(error), allow_module_level=True)
+
+
+def truth(action: str, seed: int) -> Reconstruction:
+    return Reconstruction(**make_demonstration(action, seed=seed, noise="none").truth)
+
+
+@pytest.mark.parametrize(
+    "action, seed",
+    [("pick_up", 0), ("pull_left_to_right", 0), ("push_right_to_left", 1), ("put_in_front_of", 0)],
+)
+def test_mujoco_replay_succeeds(action, seed):
+    recon = truth(action, seed)
+    plan = robot.retarget(recon)
+    result = robot.replay(plan, recon, engine="mujoco")
+    assert result.success, result.evaluation.checks
+    replayed = result.reconstruction
+    assert replayed.fps == recon.fps
+    # The gripper's TCP stands for the hand tip: it reaches the object while holding it.
+    held = replayed.grasped > 0.5
+    if plan.grasp_kind == "grasp":
+        assert held.any()
+        gap = np.linalg.norm(replayed.hand_pos[held] - replayed.object_pos[held], axis=1)
+        assert gap.max() < np.linalg.norm(recon.object_size)
+
+
+def test_cli_retarget_and_replay(tmp_path, capsys):
+    recon = truth("pick_up", 0)
+    recon.save(tmp_path / "recon.npz")
+    assert main(["retarget", str(tmp_path / "recon.npz"), "-o", str(tmp_path / "plan.npz")]) == 0
+    assert (tmp_path / "plan.csv").is_file()
+    assert main(["replay", str(tmp_path / "plan.npz"), str(tmp_path / "recon.npz"), "-o", str(tmp_path / "out")]) == 0
+    with np.load(tmp_path / "out" / "replay.npz") as out:
+        assert set(FIELD_SHAPES) <= set(out.files)
+        assert bool(out["success"])
+    assert "pick_up: success" in capsys.readouterr().out
+
+
+def test_cli_bad_plan_is_one_line(tmp_path, capsys):
+    recon = truth("put_onto", 0)  # no feasible grasp
+    recon.save(tmp_path / "recon.npz")
+    assert main(["retarget", str(tmp_path / "recon.npz"), "-o", str(tmp_path / "plan.npz")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("warpskill: error: frame 15") and "no feasible grasp" in err
+
+
+def test_unknown_engine():
+    recon = truth("pick_up", 0)
+    with pytest.raises(ValueError, match="unknown engine"):
+        robot.replay(None, recon, engine="bullet")

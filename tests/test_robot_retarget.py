@@ -1,0 +1,100 @@
+"""Retargeting to the Panda (issue 5): plans respect joint limits and avoid collisions; bad inputs fail clearly."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("placo")
+from warpskill.reconstruction import Reconstruction  # noqa: E402
+from warpskill.synthetic import make_demonstration  # noqa: E402
+
+robot = pytest.importorskip("warpskill.robot")
+from warpskill.robot.model import ARM_JOINTS, RobotModelError, make_scene, panda_description_dir, panda_urdf  # noqa: E402
+
+try:
+    panda_description_dir()
+except RobotModelError as error:  # pragma: no cover - depends on the environment
+    pytest.skip(str(error), allow_module_level=True)
+
+# URDF limits of the Panda arm (panda.urdf of example-robot-data).
+LOWER = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])
+UPPER = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
+SPEED = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
+
+CASES = [("pick_up", 0), ("push_left_to_right", 0)]
+
+
+def truth(action: str, seed: int) -> Reconstruction:
+    return Reconstruction(**make_demonstration(action, seed=seed, noise="none").truth)
+
+
+@pytest.fixture(scope="module")
+def plans():
+    return {case: (truth(*case), robot.retarget(truth(*case))) for case in CASES}
+
+
+def test_urdf_paths_resolved():
+    for kind in ("primitives", "meshes"):
+        text = panda_urdf(collision=kind)
+        assert "package://" not in text
+    assert (panda_description_dir() / "meshes" / "collision" / "link0.stl").is_file()
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_plan_within_joint_limits(plans, case):
+    _, plan = plans[case]
+    assert plan.q.shape == (plan.num_samples, 7)
+    assert np.all(plan.q >= LOWER) and np.all(plan.q <= UPPER)
+    speed = np.abs(np.diff(plan.q, axis=0)) / np.diff(plan.t)[:, None]
+    assert np.all(speed <= SPEED * 1.001), speed.max(0)
+    assert np.all((plan.gripper >= 0) & (plan.gripper <= 0.08))
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_plan_has_no_self_or_table_collision(plans, case):
+    from warpskill.robot.retargeting import _Planner
+
+    recon, plan = plans[case]
+    planner = _Planner(make_scene(recon, base=plan.base))
+    for q, opening in zip(plan.q[::2], plan.gripper[::2]):
+        planner.set_q(q, opening)
+        closest = min(d.min_distance for d in planner.robot.distances())
+        assert closest > 0.0
+
+
+def test_plan_events_and_tcp(plans):
+    recon, plan = plans[("pick_up", 0)]
+    assert plan.grasp_kind == "grasp" and np.isfinite(plan.grasp_time) and np.isnan(plan.release_time)
+    # Once the gripper has closed it stays closed (pick_up never releases).
+    held = plan.t > plan.grasp_time + 0.6
+    assert np.all(plan.gripper[held] == 0.0)
+    start = np.searchsorted(plan.t, plan.start_time)
+    assert abs(plan.recon_time[start]) < 1e-9
+
+
+def test_plan_save_load_csv(plans, tmp_path):
+    _, plan = plans[("push_left_to_right", 0)]
+    plan.save(tmp_path / "plan.npz")
+    plan.save_csv(tmp_path / "plan.csv")
+    again = robot.RobotPlan.load(tmp_path / "plan.npz")
+    np.testing.assert_allclose(again.q, plan.q)
+    assert again.grasp_name == plan.grasp_name and again.grasp_kind == "push"
+    lines = (tmp_path / "plan.csv").read_text().splitlines()
+    assert lines[0].startswith("t,q1,") and len(lines) == plan.num_samples + 1
+
+
+def test_infeasible_grasp_names_frame():
+    recon = truth("put_onto", 0)  # a 0.096 x 0.097 x 0.061 m box: wider than the gripper on every face
+    with pytest.raises(robot.PlanError, match=r"frame 15 .*no feasible grasp"):
+        robot.retarget(recon)
+
+
+def test_unreachable_target_names_frame():
+    recon = truth("pick_up", 0)
+    lifted = recon.object_pos.copy()
+    k = np.flatnonzero(recon.grasped > 0.5)
+    lifted[k[-10:], 2] += 1.5  # the object (and so the gripper) would have to fly 1.5 m up
+    recon.object_pos = lifted
+    with pytest.raises(robot.PlanError, match=r"frame \d+ \(t = .* s\): the gripper cannot reach"):
+        robot.retarget(recon)

@@ -1,0 +1,148 @@
+"""Predefined grasp and push poses of the Panda gripper on a cuboid, ranked against a demonstration.
+
+A pose is the tool-centre-point (TCP) frame in the cuboid's frame: TCP +z is the approach
+direction (into the object), TCP +y the direction the fingers open along. Families, with
+the cuboid's faces named by the world direction they face at the contact onset:
+
+- ``top_*``: from above, fingers across a horizontal edge length;
+- ``edge_*``: 45 degrees down onto the top edge of a side face, fingers across that face;
+- ``side_*``: horizontally onto a side face, fingers across it;
+- ``push_*``: closed fingers against a side face, 30, 45 or 60 degrees down, at the
+  demonstrated height.
+
+Grasps need the edge length between the fingers to fit the opening (:data:`MAX_OPENING`
+less a margin); pushes need none.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from warpskill.robot.model import MAX_OPENING
+
+FIT_MARGIN = 0.006  # [m] the object must be this much narrower than the full opening
+TOP_DEPTH = 0.03  # [m] how far below the top face the finger pads' centre goes
+EDGE_DEPTH = 0.025  # [m] how far past the top edge (along the approach) the pads' centre goes
+SIDE_DEPTH = 0.03  # [m] how far into a side face the pads' centre goes
+FINGERTIP_BELOW_TCP = 0.012  # [m] the finger pads end this far beyond the TCP along the approach
+MIN_PUSH_HEIGHT = 0.03  # [m] lowest TCP height above the object's bottom for a push
+
+
+@dataclasses.dataclass(frozen=True)
+class GraspPose:
+    """One predefined pose of the gripper on the cuboid.
+
+    Attributes:
+        name: family and face, e.g. ``top_x``, ``edge_-y``, ``push_+x_45``.
+        kind: ``grasp`` (close on the object, carry it) or ``push`` (closed fingers press it).
+        pose: (4, 4) TCP pose in the cuboid's frame.
+        width: object width between the fingers [m] (0 for pushes).
+    """
+
+    name: str
+    kind: str
+    pose: np.ndarray
+    width: float
+
+
+def _frame(approach: np.ndarray, fingers: np.ndarray, position: np.ndarray) -> np.ndarray:
+    """TCP pose with +z = approach, +y = fingers (made orthogonal), at ``position``."""
+    z = approach / np.linalg.norm(approach)
+    y = fingers - (fingers @ z) * z
+    y /= np.linalg.norm(y)
+    T = np.eye(4)
+    T[:3, :3] = np.stack([np.cross(y, z), y, z], axis=1)
+    T[:3, 3] = position
+    return T
+
+
+def _axis_name(world_dir: np.ndarray) -> str:
+    """'+x', '-y', ... for the world axis closest to ``world_dir``."""
+    i = int(np.argmax(np.abs(world_dir[:2])))
+    return ("+" if world_dir[i] > 0 else "-") + "xy"[i]
+
+
+def candidate_poses(object_rot: np.ndarray, object_size: np.ndarray, *, push_height: float | None = None,
+                    pushing: bool = False) -> list[GraspPose]:
+    """All predefined poses on a cuboid of ``object_size`` at rotation ``object_rot`` (onset frame).
+
+    Args:
+        object_rot: (3, 3) cuboid rotation at the contact onset (local to world).
+        object_size: (3,) edge lengths [m].
+        push_height: height [m] of the demonstrated contact above the cuboid's centre
+            (pushes only; clipped to the face).
+        pushing: return push poses (True) or grasp poses (False).
+    """
+    size = np.asarray(object_size, float)
+    up_world = object_rot.T @ np.array([0.0, 0.0, 1.0])  # world up in the cuboid's frame
+    up_axis = int(np.argmax(np.abs(up_world)))
+    up = np.zeros(3)
+    up[up_axis] = math.copysign(1.0, up_world[up_axis])
+    side_axes = [i for i in range(3) if i != up_axis]
+    top = size[up_axis] / 2
+    poses = []
+    faces = []  # (outward normal in the cuboid's frame, tangent axis index, name)
+    for i in side_axes:
+        j = side_axes[0] if i == side_axes[1] else side_axes[1]
+        for sign in (1.0, -1.0):
+            n = np.zeros(3)
+            n[i] = sign
+            faces.append((n, j, _axis_name(object_rot @ n)))
+    if pushing:
+        lowest, highest = -top + MIN_PUSH_HEIGHT, top - 0.01
+        h = float(np.clip(0.0 if push_height is None else push_height, lowest, max(lowest, highest)))
+        for n, j, face in faces:
+            tangent = np.eye(3)[j]
+            for tilt in (30, 45, 60):
+                a = -math.cos(math.radians(tilt)) * n - math.sin(math.radians(tilt)) * up
+                position = n * size[int(np.argmax(np.abs(n)))] / 2 + up * h
+                poses.append(GraspPose(f"push_{face}_{tilt}", "push", _frame(a, tangent, position), 0.0))
+        return poses
+    fits = lambda axis: size[axis] <= MAX_OPENING - FIT_MARGIN  # noqa: E731
+    depth = min(TOP_DEPTH, size[up_axis] - FINGERTIP_BELOW_TCP - 0.008)
+    for j in side_axes:
+        if fits(j):
+            for sign in (1.0, -1.0):
+                fingers = sign * np.eye(3)[j]
+                name = f"top_{_axis_name(object_rot @ np.eye(3)[j])[1]}{'' if sign > 0 else '_flip'}"
+                poses.append(GraspPose(name, "grasp", _frame(-up, fingers, up * (top - depth)), float(size[j])))
+    for n, j, face in faces:
+        if not fits(j):
+            continue
+        half_n = size[int(np.argmax(np.abs(n)))] / 2
+        edge = n * half_n + up * top
+        a = -(n + up) / math.sqrt(2.0)
+        for sign in (1.0, -1.0):
+            fingers = sign * np.eye(3)[j]
+            flip = "" if sign > 0 else "_flip"
+            poses.append(GraspPose(f"edge_{face}{flip}", "grasp", _frame(a, fingers, edge + EDGE_DEPTH * a),
+                                   float(size[j])))
+            side_depth = min(SIDE_DEPTH, half_n)
+            poses.append(GraspPose(f"side_{face}{flip}", "grasp", _frame(-n, fingers, n * (half_n - side_depth)),
+                                   float(size[j])))
+    return poses
+
+
+def rank_poses(poses: list[GraspPose], object_rot: np.ndarray, hand_axis: np.ndarray, *,
+               same_side: bool = False) -> list[tuple[float, GraspPose]]:
+    """Poses sorted by the angle [deg] between their approach and the demonstrated one.
+
+    The demonstrated approach is ``-hand_axis`` (the hand axis runs from the tip to the
+    arm). With ``same_side`` (push and pull), only poses whose horizontal approach comes
+    from the demonstrated side (within 60 degrees) are kept.
+    """
+    demo = -np.asarray(hand_axis, float) / np.linalg.norm(hand_axis)
+    demo_h = demo[:2] / max(np.linalg.norm(demo[:2]), 1e-9)
+    ranked = []
+    for pose in poses:
+        a = object_rot @ pose.pose[:3, 2]
+        if same_side:
+            a_h = a[:2] / max(np.linalg.norm(a[:2]), 1e-9)
+            if np.linalg.norm(a[:2]) < 0.2 or a_h @ demo_h < 0.5:
+                continue
+        ranked.append((math.degrees(math.acos(float(np.clip(a @ demo, -1.0, 1.0)))), pose))
+    ranked.sort(key=lambda item: item[0])
+    return ranked

@@ -1,0 +1,118 @@
+"""A robot plan: time-stamped Panda joint positions and gripper openings, saved as ``.npz`` and CSV.
+
+Keys of the plan ``.npz`` (units: seconds, radians, metres):
+
+| key | shape | meaning |
+| --- | --- | --- |
+| ``t`` | (T,) | time of each sample from the plan's start |
+| ``q`` | (T, 7) | arm joint positions ``panda_joint1`` .. ``panda_joint7`` |
+| ``gripper`` | (T,) | commanded gripper opening (finger distance, 0 = closed) |
+| ``tcp`` | (T, 4, 4) | planned tool-centre-point pose in the reconstruction's world |
+| ``grasp_time``, ``release_time`` | () | when the gripper starts closing / opening (nan: never) |
+| ``start_time`` | () | plan time of the reconstruction's first frame (after the lead-in) |
+| ``recon_time`` | (T,) | reconstruction time each sample follows (pauses repeat a time) |
+| ``base`` | (4, 4) | robot base pose in the world |
+| ``grasp_pose`` | (4, 4) | the chosen grasp or push pose in the object's frame |
+| ``grasp_name`` | () str | its name (e.g. ``top_x``, ``push_-x``) |
+| ``grasp_kind`` | () str | ``grasp`` (closes on the object) or ``push`` (closed fingers press it) |
+| ``action`` | () str | the reconstruction's action |
+
+The CSV has one row per sample: ``t, q1..q7, gripper, phase`` where ``phase`` is
+``approach``, ``grasp``, ``hold``, ``release`` or ``retreat``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+import numpy as np
+
+from warpskill.npz import read_npz, save_npz_atomic
+
+
+class PlanError(ValueError):
+    """No admissible robot motion: an unreachable target or no feasible grasp (the message names the frame)."""
+
+
+@dataclasses.dataclass
+class RobotPlan:
+    """Time-stamped joint positions of the Panda for one reconstruction (see the module doc for keys)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    gripper: np.ndarray
+    tcp: np.ndarray
+    grasp_time: float
+    release_time: float
+    start_time: float
+    recon_time: np.ndarray
+    base: np.ndarray
+    grasp_pose: np.ndarray
+    grasp_name: str
+    grasp_kind: str
+    action: str
+    planning_time: float = float("nan")
+
+    @property
+    def num_samples(self) -> int:
+        """T, the number of samples."""
+        return self.t.shape[0]
+
+    @property
+    def dt(self) -> float:
+        """Sample period [s]."""
+        return float(self.t[1] - self.t[0])
+
+    def phases(self) -> np.ndarray:
+        """(T,) phase name of each sample: approach, grasp, hold, release, retreat."""
+        phase = np.full(self.num_samples, "approach", dtype=object)
+        if np.isfinite(self.grasp_time):
+            phase[self.t >= self.grasp_time] = "grasp"
+            phase[self.t >= self.grasp_time + _CLOSE_TIME] = "hold"
+        if np.isfinite(self.release_time):
+            phase[self.t >= self.release_time] = "release"
+            phase[self.t >= self.release_time + _OPEN_TIME] = "retreat"
+        return phase
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the plan ``.npz`` atomically to ``path``."""
+        arrays = {field.name: np.asarray(getattr(self, field.name)) for field in dataclasses.fields(self)}
+        save_npz_atomic(path, arrays)
+
+    def save_csv(self, path: str | os.PathLike) -> None:
+        """Write ``t, q1..q7, gripper, phase`` rows to ``path``."""
+        header = "t," + ",".join(f"q{i}" for i in range(1, 8)) + ",gripper,phase"
+        rows = [header]
+        for t, q, g, phase in zip(self.t, self.q, self.gripper, self.phases()):
+            rows.append(f"{t:.4f}," + ",".join(f"{v:.6f}" for v in q) + f",{g:.5f},{phase}")
+        Path(path).write_text("\n".join(rows) + "\n")
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "RobotPlan":
+        """Read a plan ``.npz`` written by :meth:`save`.
+
+        Raises:
+            PlanError: a missing key.
+        """
+        arrays = read_npz(path, PlanError)
+        names = [field.name for field in dataclasses.fields(cls)]
+        missing = [name for name in names if name not in arrays and name != "planning_time"]
+        if missing:
+            raise PlanError(f"{path}: not a robot plan, missing key(s) {', '.join(missing)}")
+        kwargs = {}
+        for name in names:
+            if name not in arrays:
+                continue
+            value = arrays[name]
+            if name in ("grasp_name", "grasp_kind", "action"):
+                value = str(value)
+            elif value.ndim == 0:
+                value = float(value)
+            kwargs[name] = value
+        return cls(**kwargs)
+
+
+_CLOSE_TIME = 0.6  # [s] the gripper closes (and the arm waits) at the grasp
+_OPEN_TIME = 0.5  # [s] the gripper opens (and the arm waits) at the release

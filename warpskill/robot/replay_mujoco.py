@@ -1,0 +1,146 @@
+"""Replaying a robot plan in MuJoCo: Panda (collision meshes), table and cuboids, position control.
+
+The arm joints track the plan's joint positions (interpolated linearly at every physics
+step) with stiff position actuators and gravity compensation; each finger has a position
+actuator whose force is capped at :data:`GRIP_FORCE`, so a closed command squeezes the
+object. The manipulated cuboid is a free body with :data:`OBJECT_MASS` and
+:data:`FRICTION`; the table and static cuboids are fixed boxes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from warpskill.reconstruction import Reconstruction
+from warpskill.robot.model import ARM_JOINTS, FINGER_JOINTS, TCP_FRAME, environment_boxes, make_scene, mujoco_urdf
+from warpskill.robot.plan import RobotPlan
+
+TIMESTEP = 0.002  # [s]
+OBJECT_MASS = 0.2  # [kg]
+FRICTION = 1.0  # sliding friction coefficient of every contact
+GRIP_FORCE = 40.0  # [N] per finger
+ARM_KP = np.array([4500.0, 4500.0, 3500.0, 3500.0, 2000.0, 2000.0, 2000.0])  # [N m / rad]
+ARM_KV = 0.1 * ARM_KP  # [N m s / rad]
+FINGER_KP = 2000.0  # [N / m]
+
+
+def _quat(R: np.ndarray) -> np.ndarray:
+    import mujoco
+
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=np.float64).reshape(9))
+    return q
+
+
+def build_model(plan: RobotPlan, recon: Reconstruction):
+    """The compiled ``mujoco.MjModel`` of the plan's scene (robot base at ``plan.base``)."""
+    import mujoco
+
+    spec = mujoco.MjSpec.from_string(mujoco_urdf())
+    spec.option.timestep = TIMESTEP
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    spec.option.impratio = 10.0
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    base = spec.body("panda_link0")
+    base.pos = plan.base[:3, 3]
+    base.quat = _quat(plan.base[:3, :3])
+    for body in spec.bodies:
+        if body.name.startswith("panda_"):
+            body.gravcomp = 1.0
+    for geom in spec.geoms:  # robot geoms touch the scene, not each other (the plan avoids self-collision)
+        geom.friction = [FRICTION, 0.005, 0.0001]
+        geom.condim = 4
+        geom.contype, geom.conaffinity = 2, 1
+    for name in ARM_JOINTS:
+        joint = spec.joint(name)
+        joint.armature = 0.1
+        joint.damping = [1.0, 0.0, 0.0]
+    for name in FINGER_JOINTS:
+        spec.joint(name).damping = [5.0, 0.0, 0.0]
+    world = spec.worldbody
+    scene = make_scene(recon, base=plan.base)
+    for name, T, size in environment_boxes(scene):
+        world.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=size / 2, pos=T[:3, 3], quat=_quat(T[:3, :3]),
+                       friction=[FRICTION, 0.005, 0.0001], condim=4, contype=1, conaffinity=3,
+                       rgba=[0.6, 0.5, 0.4, 1.0])
+    obj = world.add_body(name="object", pos=recon.object_pos[0], quat=_quat(recon.object_rot[0]))
+    obj.add_freejoint(name="object_free")
+    obj.add_geom(name="object", type=mujoco.mjtGeom.mjGEOM_BOX, size=recon.object_size / 2, mass=OBJECT_MASS,
+                 friction=[FRICTION, 0.005, 0.0001], condim=4, contype=1, conaffinity=3,
+                 rgba=[0.2, 0.4, 0.9, 1.0])
+    spec.add_exclude(bodyname1="panda_link0", bodyname2="world")
+    spec.add_exclude(bodyname1="panda_link1", bodyname2="world")
+    for i, name in enumerate(ARM_JOINTS):
+        _position_actuator(spec, name, ARM_KP[i], ARM_KV[i], 87.0 if i < 4 else 12.0)
+    for name in FINGER_JOINTS:
+        _position_actuator(spec, name, FINGER_KP, 50.0, GRIP_FORCE)
+    return spec.compile()
+
+
+def _position_actuator(spec, joint: str, kp: float, kv: float, force: float) -> None:
+    import mujoco
+
+    act = spec.add_actuator(name=joint, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+    act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+    gain = np.zeros(10)
+    gain[0] = kp
+    bias = np.zeros(10)
+    bias[1], bias[2] = -kp, -kv
+    act.gainprm = gain
+    act.biasprm = bias
+    act.forcelimited = 1
+    act.forcerange = [-force, force]
+
+
+def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, video=None) -> dict[str, np.ndarray]:
+    """Run the plan; sample the TCP, the object and the finger contacts at plan ``times``.
+
+    Returns:
+        ``tcp`` (F, 4, 4), ``object_pos`` (F, 3), ``object_rot`` (F, 3, 3), ``held`` (F,) 1
+        where both fingers touch the object, ``q`` (F, 7) simulated arm joints.
+    """
+    import mujoco
+
+    model = build_model(plan, recon)
+    data = mujoco.MjData(model)
+    arm_qpos = [model.joint(name).qposadr[0] for name in ARM_JOINTS]
+    finger_qpos = [model.joint(name).qposadr[0] for name in FINGER_JOINTS]
+    data.qpos[arm_qpos] = plan.q[0]
+    data.qpos[finger_qpos] = plan.gripper[0] / 2
+    mujoco.mj_forward(model, data)
+    tcp_body = model.body(TCP_FRAME).id
+    obj_body = model.body("object").id
+    obj_geom = model.geom("object").id
+    finger_bodies = {model.body("panda_leftfinger").id, model.body("panda_rightfinger").id}
+    steps = int(np.ceil(times[-1] / TIMESTEP)) + 1
+    out = {"tcp": [], "object_pos": [], "object_rot": [], "held": [], "q": []}
+    k = 0
+    renderer = video.start(model) if video is not None else None
+    for step in range(steps):
+        t = step * TIMESTEP
+        while k < len(times) and times[k] <= t + 1e-9:
+            T = np.eye(4)
+            T[:3, :3] = data.xmat[tcp_body].reshape(3, 3)
+            T[:3, 3] = data.xpos[tcp_body]
+            out["tcp"].append(T)
+            out["object_pos"].append(data.xpos[obj_body].copy())
+            out["object_rot"].append(data.xmat[obj_body].reshape(3, 3).copy())
+            touching = set()
+            for c in data.contact[: data.ncon]:
+                if obj_geom in (c.geom1, c.geom2):
+                    other = c.geom2 if c.geom1 == obj_geom else c.geom1
+                    touching.add(int(model.geom_bodyid[other]))
+            out["held"].append(float(finger_bodies <= touching))
+            out["q"].append(data.qpos[arm_qpos].copy())
+            if renderer is not None:
+                video.frame(model, data)
+            k += 1
+        if k >= len(times):
+            break
+        q = np.array([np.interp(t, plan.t, plan.q[:, i]) for i in range(7)])
+        g = float(np.interp(t, plan.t, plan.gripper))
+        data.ctrl[:7] = q
+        data.ctrl[7:9] = g / 2
+        mujoco.mj_step(model, data)
+    return {key: np.asarray(value) for key, value in out.items()}

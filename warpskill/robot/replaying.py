@@ -1,0 +1,117 @@
+"""Replaying a robot plan in a physics engine and judging it with the paper's success criteria.
+
+:func:`replay` simulates the Panda, the table and the cuboids under position control of the
+plan, samples the gripper and the object at the reconstruction's frame rate from the
+plan's ``start_time`` (the end of the lead-in) to its end, and packs them as a
+:class:`~warpskill.reconstruction.Reconstruction`: the ``hand_*`` fields hold the gripper's
+TCP (hand frame of ``FORMATS.md``: origin at the TCP, local +z from the fingers towards
+the arm), ``grasp`` the gripper command (+0.02 closing, -0.02 open), ``grasped`` whether
+both fingers touch the object, the ``object_*`` fields the simulated object.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from warpskill.evaluation import Evaluation, evaluate
+from warpskill.reconstruction import Reconstruction
+from warpskill.robot.plan import RobotPlan
+
+ENGINES: tuple[str, ...] = ("mujoco", "newton")
+GRASP_LEVEL = 0.02  # [m] |grasp| written for the gripper command
+_TCP_TO_HAND = np.diag([1.0, -1.0, -1.0])  # TCP frame (z towards the object) -> hand frame (z towards the arm)
+
+
+@dataclasses.dataclass
+class Replay:
+    """The outcome of :func:`replay`.
+
+    Attributes:
+        reconstruction: the replayed motion (gripper and simulated object).
+        evaluation: the paper's criteria applied to it.
+        engine: ``mujoco`` or ``newton``.
+        replay_time: wall-clock time [s] of the simulation.
+        joints: (F, 7) simulated arm joint positions at the sampled frames.
+    """
+
+    reconstruction: Reconstruction
+    evaluation: Evaluation
+    engine: str
+    replay_time: float
+    joints: np.ndarray
+
+    @property
+    def success(self) -> bool:
+        """Whether the replayed motion achieves the action."""
+        return self.evaluation.success
+
+    def save(self, path) -> None:
+        """Write ``replay.npz``: the reconstruction keys of FORMATS.md plus ``success`` and ``engine``."""
+        from warpskill.npz import save_npz_atomic
+        from warpskill.reconstruction import FIELD_SHAPES
+
+        arrays = {name: getattr(self.reconstruction, name) for name in FIELD_SHAPES}
+        arrays["success"] = np.array(self.success)
+        arrays["engine"] = np.array(self.engine)
+        save_npz_atomic(path, arrays)
+
+
+def replay(plan: RobotPlan, recon: Reconstruction, engine: str = "mujoco", *, video=None,
+           device: str | None = None) -> Replay:
+    """Simulate ``plan`` in the scene of ``recon`` and judge the replayed object motion.
+
+    Args:
+        plan: from :func:`warpskill.robot.retarget` (or :meth:`RobotPlan.load`).
+        recon: the reconstruction the plan was made for (cuboid sizes, statics, action).
+        engine: ``"mujoco"`` (default) or ``"newton"``.
+        video: optional recorder with ``start(model)`` / ``frame(model, data)`` (MuJoCo).
+        device: Warp device for Newton (``"cpu"``, ``"cuda"``; default: Warp's default).
+
+    Raises:
+        ValueError: an unknown engine, or an action the reconstruction cannot be judged on.
+    """
+    if engine not in ENGINES:
+        raise ValueError(f"unknown engine {engine!r}; valid engines: {', '.join(ENGINES)}")
+    fps = float(recon.fps)
+    times = np.arange(plan.start_time, plan.t[-1] + 1e-9, 1.0 / fps)
+    started = time.perf_counter()
+    if engine == "mujoco":
+        from warpskill.robot import replay_mujoco as backend
+
+        sim = backend.simulate(plan, recon, times, video=video)
+    else:
+        from warpskill.robot import replay_newton as backend
+
+        sim = backend.simulate(plan, recon, times, device=device)
+    elapsed = time.perf_counter() - started
+    closing = np.interp(times, plan.t, plan.gripper) < 0.5 * max(float(plan.gripper.max()), 1e-9)
+    if plan.grasp_kind == "grasp":
+        after = times >= plan.grasp_time
+        before = ~np.isfinite(plan.release_time) | (times < plan.release_time)
+        closing = after & before
+    n = len(times)
+    replayed = Reconstruction(
+        fps=recon.fps,
+        t=np.arange(n) / fps,
+        hand_pos=sim["tcp"][:, :3, 3],
+        hand_rot=sim["tcp"][:, :3, :3] @ _TCP_TO_HAND,
+        grasp=np.where(closing, GRASP_LEVEL, -GRASP_LEVEL),
+        grasped=sim["held"],
+        object_pos=sim["object_pos"],
+        object_rot=sim["object_rot"],
+        object_size=recon.object_size,
+        static_pos=recon.static_pos,
+        static_rot=recon.static_rot,
+        static_size=recon.static_size,
+        camera_K=recon.camera_K,
+        camera_elevation=recon.camera_elevation,
+        camera_height=recon.camera_height,
+        image_size=recon.image_size,
+        action=recon.action,
+        loss=np.array(0.0),
+    )
+    action = str(recon.action) or plan.action
+    return Replay(replayed, evaluate(replayed, action), engine, elapsed, sim["q"])
