@@ -3,8 +3,13 @@
     warpskill demo [-o OUT]                       synthesise, reconstruct, picture, evaluate
     warpskill optimize DEMO.npz -o OUT            one demonstration to OUT/reconstruction.npz
     warpskill evaluate RECON.npz [--action A]     the paper's success criteria
+    warpskill retarget RECON.npz -o PLAN.npz      Panda plan (placo); also PLAN.csv
+    warpskill replay PLAN.npz RECON.npz -o OUT    simulate the plan: OUT/replay.npz + success
     warpskill bench kernels [--device cpu|cuda]   Warp kernel microbenchmarks
+    warpskill bench speed [--device cpu|cuda]     Warp engine vs plain-Torch reference, per iteration
     warpskill bench synthetic [--seeds N]         the paper's success table on synthetic data
+    warpskill bench something-else --annotations A.json --phases P.csv --actions A.csv [-o OUT]
+                                                  the same table on annotated real videos
 """
 
 from __future__ import annotations
@@ -52,11 +57,32 @@ def _parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--mode", choices=("strict", "original"), default="strict")
     evaluate.set_defaults(run=_evaluate)
 
+    retarget = commands.add_parser("retarget", help="plan a Franka Panda motion for a reconstruction (placo)")
+    retarget.add_argument("reconstruction", type=Path, help="reconstruction .npz (FORMATS.md)")
+    retarget.add_argument("-o", "--out", type=Path, required=True, help="plan .npz (a .csv is written beside it)")
+    retarget.set_defaults(run=_retarget)
+
+    replay = commands.add_parser("replay", help="simulate a robot plan and check the action's success")
+    replay.add_argument("plan", type=Path, help="plan .npz from 'warpskill retarget'")
+    replay.add_argument("reconstruction", type=Path, help="the reconstruction .npz the plan was made for")
+    replay.add_argument("-o", "--out", type=Path, required=True, help="output folder (replay.npz)")
+    replay.add_argument("--engine", choices=("mujoco", "newton"), default="mujoco")
+    replay.add_argument("--video", action="store_true", help="also write replay.mp4 (or replay.png without a renderer)")
+    replay.set_defaults(run=_replay)
+
     bench = commands.add_parser("bench", help="benchmarks").add_subparsers(title="benchmarks")
     kernels = bench.add_parser("kernels", help="Warp kernel microbenchmarks")
     kernels.add_argument("--device", default="cpu", help="cpu or cuda")
     kernels.add_argument("--repeats", type=int, default=5, help="timed repetitions (median reported)")
     kernels.set_defaults(run=_bench_kernels)
+    speed = bench.add_parser("speed", help="optimisation iterations: Warp engine vs its plain-Torch reference")
+    speed.add_argument("--device", default="cpu", help="cpu, or cuda (then the CPU too)")
+    speed.add_argument("--engines", nargs="+", default=["warp", "reference"], help="warp and/or reference")
+    speed.add_argument("--repeats", type=int, default=3, help="timed iterations (median reported)")
+    speed.add_argument("--full", action="store_true", help="also time warpskill.optimize end to end per engine")
+    speed.add_argument("--scaling", action="store_true", help="also time iterations as frames, image size, B grow")
+    speed.add_argument("--threads", type=int, help="Torch CPU threads (default: Torch's choice)")
+    speed.set_defaults(run=_bench_speed)
     synthetic = bench.add_parser("synthetic", help="the 9 actions x N seeds: the paper's success table")
     synthetic.add_argument("--seeds", type=int, default=3)
     synthetic.add_argument("--noise", default="moderate", help="none, low, moderate or high")
@@ -65,6 +91,15 @@ def _parser() -> argparse.ArgumentParser:
     synthetic.add_argument("--device", default="cpu")
     synthetic.add_argument("--iterations", type=int, help="physics-stage iterations (default: the library's)")
     synthetic.set_defaults(run=_bench_synthetic)
+    real = bench.add_parser("something-else", help="the paper's success table on annotated real videos")
+    real.add_argument("--annotations", type=Path, required=True, help="Something-Else boxes (JSON)")
+    real.add_argument("--phases", type=Path, required=True, help="action phases (CSV)")
+    real.add_argument("--actions", type=Path, required=True, help="video_id,action (CSV)")
+    real.add_argument("-o", "--out", type=Path, default=Path("warpskill-out/something-else"), help="output folder")
+    real.add_argument("--videos", nargs="*", help="a subset of the video ids (default: all)")
+    real.add_argument("--device", default="cpu")
+    real.add_argument("--iterations", type=int, help="physics-stage iterations (default: the library's)")
+    real.set_defaults(run=_bench_something_else)
     return parser
 
 
@@ -144,10 +179,49 @@ def _evaluate(args) -> int:
     return 0 if result.success else 3
 
 
+def _retarget(args) -> int:
+    from .reconstruction import Reconstruction
+    from .robot import retarget
+
+    plan = retarget(Reconstruction.load(args.reconstruction))
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    plan.save(args.out)
+    plan.save_csv(args.out.with_suffix(".csv"))
+    print(f"plan: {args.out} ({plan.num_samples} samples, {plan.t[-1]:.2f} s, grasp {plan.grasp_name}; "
+          f"planned in {plan.planning_time:.2f} s)")
+    return 0
+
+
+def _replay(args) -> int:
+    from .reconstruction import Reconstruction
+    from .robot import RobotPlan, replay
+    from .robot.video import record
+
+    recon = Reconstruction.load(args.reconstruction)
+    plan = RobotPlan.load(args.plan)
+    args.out.mkdir(parents=True, exist_ok=True)
+    result = replay(plan, recon, engine=args.engine)
+    result.save(args.out / "replay.npz")
+    print(f"replay: {args.out / 'replay.npz'} ({args.engine}, {result.replay_time:.2f} s)")
+    if args.video:
+        print(f"video: {record(plan, recon, result, args.out)}")
+    _report(result.reconstruction, result.evaluation.action)
+    return 0 if result.success else 3
+
+
 def _bench_kernels(args) -> int:
     from .bench import bench_kernels
 
     bench_kernels(device=args.device, repeats=args.repeats)
+    return 0
+
+
+def _bench_speed(args) -> int:
+    from .bench_speed import bench_speed
+
+    devices = ["cpu"] if args.device == "cpu" else ["cpu", args.device]
+    bench_speed(devices=devices, engines=args.engines, repeats=args.repeats, measure_full=args.full,
+                scaling=args.scaling, threads=args.threads)
     return 0
 
 
@@ -157,6 +231,16 @@ def _bench_synthetic(args) -> int:
     bench_synthetic(
         seeds=args.seeds, noise=args.noise, actions=args.actions, out=args.out, device=args.device,
         iterations=args.iterations,
+    )
+    return 0
+
+
+def _bench_something_else(args) -> int:
+    from .bench_real import bench_something_else
+
+    bench_something_else(
+        args.annotations, args.phases, args.actions, out=args.out, iterations=args.iterations,
+        device=args.device, videos=args.videos,
     )
     return 0
 

@@ -1,0 +1,325 @@
+"""``warpskill bench speed``: the Warp engine against its plain-Torch reference, side by side.
+
+One synthetic put_onto demonstration (50 frames, 240 x 427 masks, hand + object + one
+static cuboid) is set up as :func:`warpskill.optimize` sets it up, and each optimisation
+stage's iteration (objective forward + backward) is timed with either engine underneath:
+
+- ``warp``: :func:`warpskill.physics.simulate` and :func:`warpskill.render.render_silhouettes`;
+- ``reference``: :func:`warpskill.reference.simulate_reference` and
+  :func:`warpskill.reference.render_reference` (the "original approach": plain PyTorch).
+
+A full optimisation is estimated from the iteration times and the default iteration
+counts (both depth hypotheses of stage (a), then stage (b); an upper bound, since the
+plateau schedule may stop stage (b) early) or, with ``measure_full``, timed by running
+:func:`warpskill.optimize` on each engine.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import statistics
+import time
+from dataclasses import dataclass
+from typing import Callable, Iterator, Sequence
+from unittest import mock
+
+import torch
+
+from . import initialize, physical_scene
+from .camera import Intrinsics
+from .demonstration import Demonstration
+from .initialize import OBJECT_DEPTH_HYPOTHESES, InitialParameters, SceneTrajectories, initial_guess
+from .losses import MaskTargets
+from .optimization import OptimizeConfig, majority_filter, optimize, physical_objective, resolve_device
+from .physical_scene import PhysicalScene
+from .reference import render_reference, simulate_reference
+from .synthetic import make_demonstration, scripted_inputs, scripted_scene
+
+ENGINES = ("warp", "reference")
+FPS = 12.0
+
+
+@contextlib.contextmanager
+def engine(name: str) -> Iterator[None]:
+    """Run warpskill's optimisation on the engine ``name`` (one of :data:`ENGINES`) inside the block.
+
+    ``reference`` swaps the rollout of the physics stage and the renderer of both stages
+    for their plain-Torch references; ``warp`` changes nothing.
+    """
+    if name not in ENGINES:
+        raise ValueError(f"engine must be one of {ENGINES}, got {name!r}")
+    if name == "warp":
+        yield
+        return
+    with (
+        mock.patch.object(physical_scene, "simulate", simulate_reference),
+        mock.patch.object(initialize, "render_silhouettes", render_reference),
+    ):
+        yield
+
+
+@dataclass
+class Problem:
+    """Both optimisation stages of one demonstration, ready to iterate.
+
+    Attributes:
+        demo: the demonstration.
+        config: the optimisation settings.
+        initial: stage (a) parameters (the first depth hypothesis's initial guess).
+        physical: stage (b) parameters, started from the demonstration's ground truth.
+        stage_a: stage (a) loss terms of ``initial``.
+        stage_b: stage (b) loss terms of ``physical``.
+    """
+
+    demo: Demonstration
+    config: OptimizeConfig
+    initial: InitialParameters
+    physical: PhysicalScene
+    stage_a: Callable[[], dict[str, torch.Tensor]]
+    stage_b: Callable[[], dict[str, torch.Tensor]]
+
+
+def make_problem(
+    *, frames: int = 50, image_size: tuple[int, int] = (240, 427), image_scale: float = 0.25, device="cpu"
+) -> Problem:
+    """A put_onto demonstration of ``frames`` frames at ``image_size`` [px], with its stage
+    objectives at ``image_scale`` of that resolution, as :func:`warpskill.optimize` builds them."""
+    if frames < 4:
+        raise ValueError(f"frames must be >= 4, got {frames}")
+    device = resolve_device(device)
+    config = OptimizeConfig(image_scale=image_scale)
+    demo = make_demonstration("put_onto", image_size=image_size, duration=(frames - 1) / FPS, fps=FPS)
+    h, w = demo.intrinsics.scaled(image_scale).image_size
+    intrinsics = demo.intrinsics.resized(h, w)
+    masks = torch.as_tensor(demo.mask_stack(h, w), device=device)
+    targets = MaskTargets(masks)
+    contact_signal = majority_filter(demo.contact)
+    contact = torch.as_tensor(contact_signal, dtype=torch.float32, device=device)
+    visible = (masks[:, 1].flatten(1).amax(1) > 0.5).float()
+    weights, sigma = config.weights, config.sigma
+
+    guess = initial_guess(masks.cpu().numpy(), contact_signal, intrinsics, demo.num_static)
+    initial = InitialParameters(guess).to(device)
+    truth = SceneTrajectories(
+        **{k: torch.as_tensor(demo.truth[k], dtype=torch.float32) for k in SceneTrajectories.__dataclass_fields__}
+    )
+    physical = PhysicalScene(
+        truth,
+        contact_signal,
+        demo.fps,
+        knots_per_second=config.knots_per_second,
+        pre_roll=config.pre_roll,
+        post_roll=config.post_roll,
+        grasp_level=2.0 * weights.grasp_margin,
+        physics=config.physics,
+    ).to(device)
+    return Problem(
+        demo=demo,
+        config=config,
+        initial=initial,
+        physical=physical,
+        stage_a=lambda: initialize.initial_objective(
+            initial.scene(), targets, contact, intrinsics, demo.fps, weights, sigma
+        ),
+        stage_b=lambda: physical_objective(physical(), targets, contact, visible, intrinsics, weights, sigma),
+    )
+
+
+def iteration(module: torch.nn.Module, objective: Callable[[], dict[str, torch.Tensor]]) -> Callable[[], float]:
+    """One optimisation iteration's work: the loss terms' sum and its backward pass."""
+
+    def run() -> float:
+        module.zero_grad(set_to_none=True)
+        loss = sum(objective().values())
+        loss.backward()
+        return loss.item()
+
+    return run
+
+
+def median_seconds(fn: Callable[[], object], repeats: int, device: torch.device) -> float:
+    """Median wall time [s] of ``repeats`` calls of ``fn`` after one warm-up call."""
+
+    def once() -> float:
+        start = time.perf_counter()
+        fn()
+        if device.type == "cuda":
+            torch.cuda.synchronize(device)
+        return time.perf_counter() - start
+
+    once()  # compilation, caches, allocator
+    return statistics.median(once() for _ in range(max(1, repeats)))
+
+
+def bench_speed(
+    *,
+    devices: Sequence[str] = ("cpu",),
+    engines: Sequence[str] = ENGINES,
+    repeats: int = 3,
+    measure_full: bool = False,
+    scaling: bool = False,
+    threads: int | None = None,
+) -> list[dict]:
+    """Time both optimisation stages' iterations per engine and device; print one table.
+
+    Args:
+        devices: torch devices to run on (``"cpu"``, ``"cuda"``).
+        engines: a subset of :data:`ENGINES`.
+        repeats: timed iterations per measurement (median reported).
+        measure_full: also run :func:`warpskill.optimize` end to end per engine and device
+            (minutes for the reference).
+        scaling: also print stage (b) iteration times as frames, image size and the
+            number of scenes B grow (:func:`bench_scaling`).
+        threads: Torch's CPU threads for the run (default: Torch's choice). Both engines
+            run many small Torch operations, which one thread often does fastest.
+
+    Returns:
+        The rows of the table: engine, device, per-iteration seconds of both stages,
+        full-optimisation seconds (estimated, and measured when asked).
+    """
+    for name in engines:
+        if name not in ENGINES:
+            raise ValueError(f"engine must be one of {ENGINES}, got {name!r}")
+    if threads is not None:
+        if threads < 1:
+            raise ValueError(f"threads must be >= 1, got {threads}")
+        torch.set_num_threads(threads)
+    rows = []
+    for device in map(resolve_device, devices):
+        problem = make_problem(device=device)
+        config = problem.config
+        for name in engines:
+            with engine(name):
+                stage_a = median_seconds(iteration(problem.initial, problem.stage_a), repeats, device)
+                stage_b = median_seconds(iteration(problem.physical, problem.stage_b), repeats, device)
+                estimate = len(OBJECT_DEPTH_HYPOTHESES) * config.init_iterations * stage_a + config.iterations * stage_b
+                measured = None
+                if measure_full:
+                    start = time.perf_counter()
+                    optimize(problem.demo, device=device, progress=False)
+                    measured = time.perf_counter() - start
+            rows.append(dict(engine=name, device=str(device), stage_a_s=stage_a, stage_b_s=stage_b,
+                             full_estimate_s=estimate, full_measured_s=measured))
+    _print_table(rows, problem, repeats)
+    if scaling:
+        bench_scaling(devices=devices, engines=engines, repeats=repeats)
+    return rows
+
+
+def _print_table(rows: list[dict], problem: Problem, repeats: int) -> None:
+    demo, config = problem.demo, problem.config
+    h, w = demo.intrinsics.scaled(config.image_scale).image_size
+    print(
+        f"one iteration = objective forward + backward; {demo.num_frames} frames of {demo.image_size[0]} x "
+        f"{demo.image_size[1]} masks, rendered at {h} x {w}; median of {repeats}; torch threads "
+        f"{torch.get_num_threads()}"
+    )
+    print(
+        f"full optimisation = {len(OBJECT_DEPTH_HYPOTHESES)} x {config.init_iterations} stage (a) + "
+        f"{config.iterations} stage (b) iterations (an upper bound); 'measured' runs warpskill.optimize"
+    )
+    warp = {r["device"]: r for r in rows if r["engine"] == "warp"}
+    header = (
+        f"{'engine':<10} {'device':<7} {'(a) iter [ms]':>13} {'(b) iter [ms]':>13} {'full est. [s]':>13} "
+        f"{'measured [s]':>12} {'x warp (a)':>10} {'x warp (b)':>10} {'x warp full':>11}"
+    )
+    print(header)
+    for r in rows:
+        base = warp.get(r["device"])
+        ratio = lambda key: f"{r[key] / base[key]:.1f}" if base and r[key] else "-"  # noqa: E731
+        measured = f"{r['full_measured_s']:.1f}" if r["full_measured_s"] is not None else "-"
+        print(
+            f"{r['engine']:<10} {r['device']:<7} {1e3 * r['stage_a_s']:>13.1f} {1e3 * r['stage_b_s']:>13.1f} "
+            f"{r['full_estimate_s']:>13.1f} {measured:>12} {ratio('stage_a_s'):>10} {ratio('stage_b_s'):>10} "
+            f"{ratio('full_measured_s' if r['full_measured_s'] else 'full_estimate_s'):>11}"
+        )
+
+
+def bench_scaling(
+    *,
+    devices: Sequence[str] = ("cpu",),
+    engines: Sequence[str] = ENGINES,
+    repeats: int = 3,
+    frames: Sequence[int] = (25, 50, 100),
+    scales: Sequence[float] = (0.125, 0.25, 0.5),
+    batches: Sequence[int] = (1, 4, 16),
+) -> list[dict]:
+    """Stage (b) iteration time [ms] as the frames, the working image size and the batch grow.
+
+    Frames and image size vary one at a time about the default problem (50 frames, 240 x
+    427 masks at scale 0.25). A batch of B is the engine work of B put_onto scenes: one
+    rollout of B scenes and one rendering of their B x 50 frames, forward and backward
+    (warpskill optimises one demonstration at a time today).
+    Prints a table and returns its rows.
+    """
+    rows = []
+    for device in map(resolve_device, devices):
+        cases: list[tuple[str, Callable[[], Problem]]] = [
+            *((f"frames {n}", lambda n=n: make_problem(frames=n, device=device)) for n in frames),
+            *((f"scale {s}", lambda s=s: make_problem(image_scale=s, device=device)) for s in scales),
+        ]
+        for label, build in cases:
+            problem = build()
+            h, w = problem.demo.intrinsics.scaled(problem.config.image_scale).image_size
+            row = dict(case=label, device=str(device), frames=problem.demo.num_frames, image=f"{h}x{w}", batch=1)
+            for name in engines:
+                with engine(name):
+                    row[name] = median_seconds(iteration(problem.physical, problem.stage_b), repeats, device)
+            rows.append(row)
+        scale, sigma = OptimizeConfig().image_scale, OptimizeConfig().sigma
+        h, w = Intrinsics.default(240, 427).scaled(scale).image_size
+        for batch in batches:
+            row = dict(case=f"batch {batch}", device=str(device), frames=50, image=f"{h}x{w}", batch=batch)
+            for name in engines:
+                with engine(name):
+                    row[name] = median_seconds(_batched(batch, scale, sigma, device), repeats, device)
+            rows.append(row)
+    print(f"stage (b) iteration [ms] (median of {repeats})")
+    print(f"{'case':<12} {'device':<7} {'frames':>6} {'image':>8} {'B':>3} " + " ".join(f"{n:>10}" for n in engines)
+          + (f" {'ratio':>7}" if len(engines) > 1 else ""))
+    for r in rows:
+        times = " ".join(f"{1e3 * r[n]:>10.1f}" for n in engines)
+        ratio = f" {r[engines[-1]] / r[engines[0]]:>7.1f}" if len(engines) > 1 else ""
+        print(f"{r['case']:<12} {r['device']:<7} {r['frames']:>6} {r['image']:>8} {r['batch']:>3} {times}{ratio}")
+    return rows
+
+
+def _batched(batch: int, image_scale: float, sigma: float, device: torch.device) -> Callable[[], float]:
+    """Engine work of ``batch`` put_onto scenes (50 frames): one rollout of all of them and one
+    rendering of their ``batch`` x 50 frames, forward and backward (a stand-in loss)."""
+    duration = 49 / FPS
+    script = scripted_scene("put_onto", duration=duration)
+    inputs = scripted_inputs(script, FPS, duration, dtype=torch.float32)
+    tensors = {
+        k: v.to(device).expand(batch, *v.shape[1:]).clone().requires_grad_(True)
+        for k, v in inputs.items()
+        if torch.is_tensor(v)
+    }
+    options = {k: v for k, v in inputs.items() if not torch.is_tensor(v)}
+    camera = [
+        torch.tensor(x, dtype=torch.float32, device=device) for x in (script.camera_height, script.camera_elevation)
+    ]
+    intrinsics = Intrinsics.default(240, 427).scaled(image_scale)
+
+    def run() -> float:
+        for tensor in tensors.values():
+            tensor.grad = None
+        out = physical_scene.simulate(**tensors, **options)
+        B, N = out.hand_pos.shape[:2]
+        statics = [tensors[k][:, None].expand(B, N, *tensors[k].shape[1:]) for k in ("static_pos", "static_rot")]
+        sizes = torch.cat([tensors["object_size"][:, None], tensors["static_size"]], 1)  # (B, 1 + K, 3)
+        masks = initialize.render_silhouettes(
+            out.hand_pos.flatten(0, 1),
+            out.hand_rot.flatten(0, 1),
+            torch.cat([out.object_pos[:, :, None], statics[0]], 2).flatten(0, 1),
+            torch.cat([out.object_rot[:, :, None], statics[1]], 2).flatten(0, 1),
+            sizes[:, None].expand(B, N, -1, 3).flatten(0, 1),
+            *camera,
+            intrinsics,
+            sigma=sigma,
+        )
+        loss = masks.mean() + out.object_pos.square().mean()
+        loss.backward()
+        return loss.item()
+
+    return run
