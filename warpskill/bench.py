@@ -47,7 +47,7 @@ def bench_kernels(device: str = "cpu", repeats: int = 5) -> list[dict]:
     steps = inputs["hand_vel"].shape[1]
     for batch in (1, 64):
         tensors = {
-            k: (v.to(device).expand(batch, *v.shape[1:]).clone().requires_grad_(v.is_floating_point()))
+            k: (v.to(device).repeat(batch, *[1] * (v.ndim - 1)).requires_grad_(v.is_floating_point()))
             if torch.is_tensor(v)
             else v
             for k, v in inputs.items()
