@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from .distances import box_signed_distance
 from .initialize import (
     MIN_OBJECT_SIZE,
     MIN_STATIC_SIZE,
@@ -95,12 +96,12 @@ class PhysicalScene(torch.nn.Module):
         P = torch.nn.Parameter
         fit = fit.detached("cpu")
         grasp_target = torch.where(torch.as_tensor(contact, dtype=torch.bool), grasp_level, -grasp_level)
-        self.hand_pos0 = P(fit.hand_pos[0].clone())
         self.hand_rot6 = P(rotation_to_6d(fit.hand_rot[0]))
         self.grasp0 = P(grasp_target[0].reshape(()).clone())
         control = self._fit_control(fit, contact, grasp_target, basis, dt)
         self.control = P(control)
-        self.object_pos0 = P(fit.object_pos[0] + self._onset_offset(fit, contact, control, basis, dt))
+        self.hand_pos0 = P(fit.hand_pos[0] - self._grasp_onset_shift(fit, contact, control, basis, dt, grasp_level))
+        self.object_pos0 = P(fit.object_pos[0].clone())
         self.object_rot6 = P(rotation_to_6d(fit.object_rot[0]))
         self.object_size_raw = P(positive_inverse(fit.object_size, MIN_OBJECT_SIZE))
         self.static_xy = P(fit.static_pos[:, :2].clone())
@@ -140,23 +141,31 @@ class PhysicalScene(torch.nn.Module):
         angular = solve(mid_basis, omega)
         return torch.as_tensor(np.concatenate([linear, angular, grasp_rate], 1), dtype=torch.float32)
 
-    def _onset_offset(
-        self, fit: SceneTrajectories, contact: np.ndarray, control: torch.Tensor, basis: np.ndarray, dt: float
+    def _grasp_onset_shift(
+        self, fit: SceneTrajectories, contact: np.ndarray, control: torch.Tensor, basis: np.ndarray, dt: float,
+        depth: float,
     ) -> torch.Tensor:
-        """Shift (3,) [m] of the object's start that keeps stage (a)'s tip-to-object offset at
-        the first contact frame.
+        """Shift (3,) [m] of the hand's whole path that puts its simulated tip ``depth`` inside
+        the object at the first contact frame.
 
-        The spline only approximates stage (a)'s hand path, and millimetres decide whether
-        the tip is inside the object when the grasp closes; once closed, the rigid carry
-        keeps the offset.
+        The spline only approximates stage (a)'s hand path, and stage (a) only asks for the
+        tip to be inside on average; millimetres decide whether the grasp switch saturates
+        (a switch below 1 carries the object only partly, and it slips out). The tip moves
+        along the normal of the object's face nearest to it; once the grasp closes, the rigid
+        carry keeps the depth.
         """
         onset = np.flatnonzero(contact)
         if len(onset) == 0:
             return torch.zeros(3)
-        k = int(onset[0])
-        steps = k * self.steps_per_frame
+        steps = int(onset[0]) * self.steps_per_frame
         tip = fit.hand_pos[0] + dt * torch.as_tensor(basis[:steps].sum(0), dtype=torch.float32) @ control[:, :3]
-        return tip - fit.hand_pos[k]
+        pos, rot, size = fit.object_pos[0], fit.object_rot[0], fit.object_size
+        local = rot.T @ (tip - pos)
+        axis = int(torch.argmax(local.abs() - 0.5 * size))
+        normal = rot[:, axis] * torch.sign(local[axis])
+        depth = min(depth, 0.25 * float(size.min()))
+        distance = box_signed_distance(tip, pos, rot, size)
+        return (distance + depth).clamp_min(0.0) * normal
 
     def cuboids(self) -> tuple[torch.Tensor, ...]:
         """Object size (3,), static centres (K, 3), rotations (K, 3, 3) and sizes (K, 3)."""
