@@ -6,7 +6,11 @@ stage's iteration (objective forward + backward) is timed with either engine und
 
 - ``warp``: :func:`warpskill.physics.simulate` and :func:`warpskill.render.render_silhouettes`;
 - ``reference``: :func:`warpskill.reference.simulate_reference` and
-  :func:`warpskill.reference.render_reference` (the "original approach": plain PyTorch).
+  :func:`warpskill.reference.render_reference` (the "original approach": plain PyTorch);
+- ``dopri5``: :func:`warpskill.reference.simulate_dopri5` (the paper's integrator: adaptive
+  dopri5 with grasp/release events, float64, ``torchdiffeq`` from the ``baselines`` extra)
+  for the physics stage's rollout only; rendering stays Warp's, so stage (a), which has no
+  physics, runs as ``warp`` and stage (b) differs from ``warp`` by the rollout alone.
 
 A full optimisation is estimated from the iteration times and the default iteration
 counts (both depth hypotheses of stage (a), then stage (b); an upper bound, since the
@@ -32,10 +36,11 @@ from .initialize import OBJECT_DEPTH_HYPOTHESES, InitialParameters, SceneTraject
 from .losses import MaskTargets
 from .optimization import OptimizeConfig, majority_filter, optimize, physical_objective, resolve_device
 from .physical_scene import PhysicalScene
-from .reference import render_reference, simulate_reference
+from .reference import render_reference, simulate_dopri5, simulate_reference
 from .synthetic import make_demonstration, scripted_inputs, scripted_scene
 
-ENGINES = ("warp", "reference")
+ENGINES = ("warp", "reference", "dopri5")
+DEFAULT_ENGINES = ("warp", "reference")  # dopri5's stage (b) iteration takes seconds
 FPS = 12.0
 
 
@@ -44,12 +49,19 @@ def engine(name: str) -> Iterator[None]:
     """Run warpskill's optimisation on the engine ``name`` (one of :data:`ENGINES`) inside the block.
 
     ``reference`` swaps the rollout of the physics stage and the renderer of both stages
-    for their plain-Torch references; ``warp`` changes nothing.
+    for their plain-Torch references; ``dopri5`` swaps the rollout only, for the dopri5
+    baseline; ``warp`` changes nothing.
     """
     if name not in ENGINES:
         raise ValueError(f"engine must be one of {ENGINES}, got {name!r}")
     if name == "warp":
         yield
+        return
+    if name == "dopri5":
+        if simulate_dopri5 is None:
+            raise ValueError("engine 'dopri5' needs torchdiffeq: pip install 'warpskill[baselines]'")
+        with mock.patch.object(physical_scene, "simulate", simulate_dopri5):
+            yield
         return
     with (
         mock.patch.object(physical_scene, "simulate", simulate_reference),
@@ -154,7 +166,7 @@ def median_seconds(fn: Callable[[], object], repeats: int, device: torch.device)
 def bench_speed(
     *,
     devices: Sequence[str] = ("cpu",),
-    engines: Sequence[str] = ENGINES,
+    engines: Sequence[str] = DEFAULT_ENGINES,
     repeats: int = 3,
     measure_full: bool = False,
     scaling: bool = False,
@@ -238,7 +250,7 @@ def _print_table(rows: list[dict], problem: Problem, repeats: int) -> None:
 def bench_scaling(
     *,
     devices: Sequence[str] = ("cpu",),
-    engines: Sequence[str] = ENGINES,
+    engines: Sequence[str] = DEFAULT_ENGINES,
     repeats: int = 3,
     frames: Sequence[int] = (25, 50, 100),
     scales: Sequence[float] = (0.125, 0.25, 0.5),

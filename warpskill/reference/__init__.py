@@ -6,9 +6,16 @@ Two uses: the oracle that the kernels' values and gradients are tested against
 
 - :func:`simulate_reference`: same arguments and output as :func:`warpskill.physics.simulate`.
 - :func:`render_reference`: same arguments and output as :func:`warpskill.render.render_silhouettes`.
+- :func:`simulate_dopri5`: the same model integrated as the paper does, adaptive dopri5
+  (``torchdiffeq``) with grasp/release events and a hard switch; needs the ``baselines`` extra.
 """
 
 from .physics import simulate_reference
 from .raster import render_reference
 
-__all__ = ["render_reference", "simulate_reference"]
+try:
+    from .dopri5 import simulate_dopri5
+except ImportError:  # torchdiffeq (the optional extra "baselines") is missing
+    simulate_dopri5 = None
+
+__all__ = ["render_reference", "simulate_dopri5", "simulate_reference"]
