@@ -26,7 +26,8 @@ def truth(action: str, seed: int) -> Reconstruction:
 
 @pytest.mark.parametrize(
     "action, seed",
-    [("pick_up", 0), ("pull_left_to_right", 0), ("push_right_to_left", 1), ("put_in_front_of", 0)],
+    [("pick_up", 0), ("pull_left_to_right", 0), ("pull_right_to_left", 0), ("push_right_to_left", 1),
+     ("put_in_front_of", 0)],
 )
 def test_mujoco_replay_succeeds(action, seed):
     recon = truth(action, seed)

@@ -22,7 +22,9 @@ LOWER = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973]
 UPPER = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
 SPEED = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
 
-CASES = [("pick_up", 0), ("push_left_to_right", 0)]
+# pull_right_to_left 0: the cuboid is too wide to grasp, the gripper hooks it; push_right_to_left 0: the
+# start violates the hard collision margin and is softened.
+CASES = [("pick_up", 0), ("push_left_to_right", 0), ("pull_right_to_left", 0), ("push_right_to_left", 0)]
 
 
 def truth(action: str, seed: int) -> Reconstruction:
@@ -98,3 +100,9 @@ def test_unreachable_target_names_frame():
     recon.object_pos = lifted
     with pytest.raises(robot.PlanError, match=r"frame \d+ \(t = .* s\): the gripper cannot reach"):
         robot.retarget(recon)
+
+
+def test_wide_cuboid_is_pulled_with_a_hook(plans):
+    plan = plans[("pull_right_to_left", 0)][1]
+    assert plan.grasp_name.startswith("hook_") and plan.grasp_kind == "push"
+    assert np.all(plan.gripper == 0.0)

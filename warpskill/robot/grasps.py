@@ -8,7 +8,11 @@ the cuboid's faces named by the world direction they face at the contact onset:
 - ``edge_*``: 45 degrees down onto the top edge of a side face, fingers across that face;
 - ``side_*``: horizontally onto a side face, fingers across it;
 - ``push_*``: closed fingers against a side face, 30, 45 or 60 degrees down, at the
-  demonstrated height.
+  demonstrated height;
+- ``hook_*`` (pulls of cuboids too wide to grasp): closed fingers reach over the cuboid from
+  the demonstrated side, 60 or 75 degrees down, and hook behind the far face at
+  :data:`MIN_PUSH_HEIGHT`; they come down :attr:`GraspPose.standoff` outside that face (so
+  the straight approach clears the top edge) and move onto it while the gripper would close.
 
 Grasps need the edge length between the fingers to fit the opening (:data:`MAX_OPENING`
 less a margin); pushes need none.
@@ -29,6 +33,8 @@ EDGE_DEPTH = 0.025  # [m] how far past the top edge (along the approach) the pad
 SIDE_DEPTH = 0.03  # [m] how far into a side face the pads' centre goes
 FINGERTIP_BELOW_TCP = 0.012  # [m] the finger pads end this far beyond the TCP along the approach
 MIN_PUSH_HEIGHT = 0.03  # [m] lowest TCP height above the object's bottom for a push
+HOOK_OFFSET = 0.012  # [m] TCP outside the hooked face: the closed fingers' half thickness
+HOOK_CLEARANCE = 0.015  # [m] the approaching fingertips pass this far outside the hooked face's top edge
 
 
 @dataclasses.dataclass(frozen=True)
@@ -40,12 +46,15 @@ class GraspPose:
         kind: ``grasp`` (close on the object, carry it) or ``push`` (closed fingers press it).
         pose: (4, 4) TCP pose in the cuboid's frame.
         width: object width between the fingers [m] (0 for pushes).
+        standoff: (hooks) how far outside the face [m], along its outward normal, the
+            gripper comes down before moving onto ``pose``; 0 for the others.
     """
 
     name: str
     kind: str
     pose: np.ndarray
     width: float
+    standoff: float = 0.0
 
 
 def _frame(approach: np.ndarray, fingers: np.ndarray, position: np.ndarray) -> np.ndarray:
@@ -66,7 +75,7 @@ def _axis_name(world_dir: np.ndarray) -> str:
 
 
 def candidate_poses(object_rot: np.ndarray, object_size: np.ndarray, *, push_height: float | None = None,
-                    pushing: bool = False) -> list[GraspPose]:
+                    pushing: bool = False, hooking: bool = False) -> list[GraspPose]:
     """All predefined poses on a cuboid of ``object_size`` at rotation ``object_rot`` (onset frame).
 
     Args:
@@ -75,6 +84,7 @@ def candidate_poses(object_rot: np.ndarray, object_size: np.ndarray, *, push_hei
         push_height: height [m] of the demonstrated contact above the cuboid's centre
             (pushes only; clipped to the face).
         pushing: return push poses (True) or grasp poses (False).
+        hooking: with grasp poses, also return hook poses (for pulls).
     """
     size = np.asarray(object_size, float)
     up_world = object_rot.T @ np.array([0.0, 0.0, 1.0])  # world up in the cuboid's frame
@@ -101,6 +111,17 @@ def candidate_poses(object_rot: np.ndarray, object_size: np.ndarray, *, push_hei
                 position = n * size[int(np.argmax(np.abs(n)))] / 2 + up * h
                 poses.append(GraspPose(f"push_{face}_{tilt}", "push", _frame(a, tangent, position), 0.0))
         return poses
+    if hooking:
+        h = -top + MIN_PUSH_HEIGHT
+        for n, j, face in faces:
+            half_n = size[int(np.argmax(np.abs(n)))] / 2
+            for tilt in (60, 75):
+                slope = math.tan(math.radians(tilt))
+                a = math.cos(math.radians(tilt)) * n - math.sin(math.radians(tilt)) * up
+                position = n * (half_n + HOOK_OFFSET) + up * h
+                standoff = max(0.0, (top - h) / slope + HOOK_CLEARANCE - HOOK_OFFSET)
+                poses.append(GraspPose(f"hook_{face}_{tilt}", "push", _frame(a, np.eye(3)[j], position), 0.0,
+                                       standoff))
     fits = lambda axis: size[axis] <= MAX_OPENING - FIT_MARGIN  # noqa: E731
     depth = min(TOP_DEPTH, size[up_axis] - FINGERTIP_BELOW_TCP - 0.008)
     for j in side_axes:

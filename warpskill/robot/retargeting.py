@@ -49,9 +49,11 @@ SETTLE = 0.5  # [s] still time at the end
 VELOCITY_SCALE = 0.9  # plan within this fraction of the URDF joint speed limits
 LIMIT_MARGIN = 0.02  # [rad] plan this far inside the joint limits
 COLLISION_MARGIN = 0.005  # [m] smallest planned distance between checked bodies
+SOFT_COLLISION_WEIGHT = 100.0  # weight of the collision constraint when a start must be softened
 TRACK_POSITION = 0.01  # [m] largest TCP position error accepted
 TRACK_ANGLE = 8.0  # [deg] largest TCP orientation error accepted
 CLEARANCE = 0.003  # [m] a carried object is kept this far above its support
+HOOK_PENALTY = 1000.0  # a pull hooks the cuboid only when no grasp is feasible
 SLOWDOWNS = (1.0, 1.7)  # the demonstration is replayed this many times slower when the robot lags
 
 
@@ -82,7 +84,8 @@ def retarget(recon: Reconstruction, *, placement: Placement | None = None) -> Ro
     R_on = recon.object_rot[k_on]
     axis = recon.hand_rot[k_on][:, 2]
     push_height = float(R_on[:, 2] @ (recon.hand_pos[k_on] - recon.object_pos[k_on]))
-    poses = candidate_poses(R_on, recon.object_size, push_height=push_height, pushing=pushing)
+    pulling = action.startswith("pull_")
+    poses = candidate_poses(R_on, recon.object_size, push_height=push_height, pushing=pushing, hooking=pulling)
     if not poses:
         size = " x ".join(f"{s:.3f}" for s in recon.object_size)
         raise PlanError(
@@ -102,7 +105,7 @@ def retarget(recon: Reconstruction, *, placement: Placement | None = None) -> Ro
         if q is None or q_pre is None:
             statics.append((pose.name, why or why_pre))
             continue
-        cost = angle + 10.0 * float(np.abs(q - HOME_Q).sum())
+        cost = angle + 10.0 * float(np.abs(q - HOME_Q).sum()) + (HOOK_PENALTY if pose.standoff > 0 else 0.0)
         statics.append((cost, pose))
     feasible = sorted((item for item in statics if isinstance(item[1], GraspPose)), key=lambda item: item[0])
     if not feasible:
@@ -189,7 +192,11 @@ def _targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_
     T_on = _pose(recon.object_pos[k_on], recon.object_rot[k_on])
     G = T_on @ pose.pose  # the grasp pose in the world at the onset
     approach = G[:3, 2]
-    pregrasp = G @ _translate(0, 0, -PREGRASP)
+    # A hook comes down beside the face (G_down) and moves onto it while the gripper would close.
+    outward = approach - (approach @ np.array([0.0, 0.0, 1.0])) * np.array([0.0, 0.0, 1.0])
+    G_down = G.copy()
+    G_down[:3, 3] += pose.standoff * outward / max(np.linalg.norm(outward), 1e-9)
+    pregrasp = G_down @ _translate(0, 0, -PREGRASP)
     app_time = min(APPROACH_TIME, 0.5 * t_on) if t_on > 0 else 0.0
     t_pre = t_on - app_time
     shift = pregrasp[:3, 3] - _interp_hand(recon, t_pre)
@@ -210,7 +217,7 @@ def _targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_
             return T
         s = _min_jerk(np.array((tau - t_pre) / max(app_time, 1e-9)))
         T = G.copy()
-        T[:3, 3] = (1 - s) * pregrasp[:3, 3] + s * G[:3, 3]
+        T[:3, 3] = (1 - s) * pregrasp[:3, 3] + s * G_down[:3, 3]
         return T
 
     def hold_target(tau: float) -> np.ndarray:
@@ -229,8 +236,11 @@ def _targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_
     for tau in np.arange(0.0, t_on, step):
         add(float(tau), approach_target(float(tau)), opening)
     grasp_time = len(times) * DT
-    for i in range(int(round(CLOSE_TIME / DT))):
-        add(t_on, G, opening * max(0.0, 1.0 - (i * DT) / close_ramp))
+    n_close = int(round(CLOSE_TIME / DT))
+    for i in range(n_close):
+        T = G.copy()
+        T[:3, 3] = G_down[:3, 3] + _min_jerk(np.array((i + 1) / n_close)) * (G[:3, 3] - G_down[:3, 3])
+        add(t_on, T, opening * max(0.0, 1.0 - (i * DT) / close_ramp))
     hold_end = t_off if t_off is not None else t_end
     for tau in np.arange(t_on, hold_end, step):
         add(float(tau), hold_target(float(tau)), 0.0)
@@ -349,14 +359,31 @@ class _Planner:
     def tcp(self) -> np.ndarray:
         return np.array(self.robot.get_T_world_frame(TCP_FRAME))
 
-    def step(self, target: np.ndarray, dt: float) -> None:
+    def step(self, target: np.ndarray, dt: float, *, soften: bool = False) -> None:
+        """One IK step towards ``target``; with ``soften``, an infeasible QP is retried with soft collisions.
+
+        Softening lets a start that violates the hard collision margin (the home pose near a
+        static box, or a pose on a cuboid's face) move out of it instead of failing.
+        """
         self.solver.dt = dt
         self.task.T_world_frame = target
         try:
             self.solver.solve(True)
         except RuntimeError as error:  # an infeasible QP (placo.QPError)
-            raise PlanError(f"the IK problem became infeasible ({error})") from None
+            if not soften:
+                raise PlanError(f"the IK problem became infeasible ({error})") from None
+            self.collisions.configure("collisions", "soft", SOFT_COLLISION_WEIGHT)
+            try:
+                self.solver.solve(True)
+            except RuntimeError as error:
+                raise PlanError(f"the IK problem became infeasible ({error})") from None
+            finally:
+                self.collisions.configure("collisions", "hard")
         self.robot.update_kinematics()
+
+    def min_distance(self) -> float:
+        """Smallest distance [m] between the checked bodies (negative: penetration)."""
+        return min((d.min_distance for d in self.robot.distances()), default=math.inf)
 
     def error(self, target: np.ndarray) -> tuple[float, float]:
         T = self.tcp()
@@ -368,7 +395,7 @@ class _Planner:
         self.solver.enable_velocity_limits(False)
         try:
             for _ in range(iterations):
-                self.step(target, 0.05)
+                self.step(target, 0.05, soften=True)
         except PlanError as error:
             return None, str(error)
         finally:
@@ -376,6 +403,8 @@ class _Planner:
         pos, ang = self.error(target)
         if pos > TRACK_POSITION / 4 or ang > TRACK_ANGLE / 4:
             return None, f"out of reach ({100 * pos:.1f} cm, {ang:.0f} deg away{self._why()})"
+        if self.min_distance() < COLLISION_MARGIN - 1e-3:
+            return None, f"in collision{self._why()}"
         return self.q(), ""
 
     def _why(self) -> str:
@@ -404,12 +433,15 @@ class _Planner:
             for name in FINGER_JOINTS:
                 self.robot.set_joint(name, grip / 2)
             try:
-                self.step(target, DT)
+                self.step(target, DT, soften=i < lead_in)
             except PlanError as error:
                 k, tau = frame_of(i)
                 raise PlanError(f"frame {k} (t = {tau:.2f} s): {error}") from None
             qs[i] = self.q()
             tcps[i] = self.tcp()
+            if i >= lead_in - 1 and self.min_distance() < COLLISION_MARGIN - 1e-3:
+                k, tau = frame_of(i)
+                raise PlanError(f"frame {k} (t = {tau:.2f} s): the gripper collides{self._why()}")
             if i >= lead_in - 1:
                 pos, ang = self.error(target)
                 if pos > TRACK_POSITION or ang > TRACK_ANGLE:
