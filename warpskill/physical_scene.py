@@ -30,6 +30,7 @@ from .rotations import rotation_from_6d, rotation_log, rotation_to_6d
 from .spline import natural_cubic_basis
 
 CONTACT_FIT_WEIGHT = 50.0  # contact frames' weight in the hand spline's least-squares fit
+MAX_ONSET_SHIFT = 0.02  # [m] largest shift of the hand path that puts the tip inside at the onset
 
 
 @dataclass
@@ -165,7 +166,9 @@ class PhysicalScene(torch.nn.Module):
         normal = rot[:, axis] * torch.sign(local[axis])
         depth = min(depth, 0.25 * float(size.min()))
         distance = box_signed_distance(tip, pos, rot, size)
-        return (distance + depth).clamp_min(0.0) * normal
+        # A correction for the spline's error, not a relocation: far from the object, stage (a)
+        # itself disagrees with the contact signal, and moving the whole path would undo its fit.
+        return (distance + depth).clamp(0.0, MAX_ONSET_SHIFT) * normal
 
     def cuboids(self) -> tuple[torch.Tensor, ...]:
         """Object size (3,), static centres (K, 3), rotations (K, 3, 3) and sizes (K, 3)."""
