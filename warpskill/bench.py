@@ -15,8 +15,9 @@ from .actions import ACTIONS
 from .camera import Intrinsics, world_to_camera
 
 
-def _timed(fn: Callable[[], object], repeats: int, device: torch.device) -> tuple[float, float]:
-    """(first-call seconds, median seconds of ``repeats`` further calls) of ``fn``."""
+def timed(fn: Callable[[], object], repeats: int, device: torch.device) -> tuple[float, float]:
+    """(first-call seconds, median seconds of ``repeats`` further calls) of ``fn``; the first call
+    pays for compilation and caches, the median is the steady state (CUDA synchronised)."""
 
     def once() -> float:
         start = time.perf_counter()
@@ -62,7 +63,7 @@ def bench_kernels(device: str = "cpu", repeats: int = 5) -> list[dict]:
             (out.object_pos.sum() + out.hand_pos.sum()).backward()
 
         for label, fn in (("forward", forward), ("forward+backward", backward)):
-            first, median = _timed(fn, repeats, device)
+            first, median = timed(fn, repeats, device)
             rows.append(
                 dict(kernel=f"rollout B={batch}", mode=label, first_s=first, median_s=median,
                      rate=f"{batch * steps / median:,.0f} steps/s")
@@ -96,7 +97,7 @@ def bench_kernels(device: str = "cpu", repeats: int = 5) -> list[dict]:
             (render_scene(scene, intrinsics, sigma=1.0) * weights).sum().backward()
 
         for label, fn in (("forward", forward), ("forward+backward", backward)):
-            first, median = _timed(fn, repeats, device)
+            first, median = timed(fn, repeats, device)
             size = "x".join(map(str, intrinsics.image_size))
             rows.append(
                 dict(kernel=f"raster 50 x {size}", mode=label, first_s=first, median_s=median,

@@ -21,7 +21,6 @@ plateau schedule may stop stage (b) early) or, with ``measure_full``, timed by r
 from __future__ import annotations
 
 import contextlib
-import statistics
 import time
 from dataclasses import dataclass
 from typing import Callable, Iterator, Sequence
@@ -33,8 +32,15 @@ from . import initialize, physical_scene
 from .camera import Intrinsics
 from .demonstration import Demonstration
 from .initialize import OBJECT_DEPTH_HYPOTHESES, InitialParameters, SceneTrajectories, initial_guess
-from .losses import MaskTargets
-from .optimization import OptimizeConfig, majority_filter, optimize, physical_objective, resolve_device
+from .bench import timed
+from .optimization import (
+    OptimizeConfig,
+    make_physical_scene,
+    optimize,
+    physical_objective,
+    resolve_device,
+    working_inputs,
+)
 from .physical_scene import PhysicalScene
 from .reference import render_reference, simulate_dopri5, simulate_reference
 from .synthetic import make_demonstration, scripted_inputs, scripted_scene
@@ -101,30 +107,16 @@ def make_problem(
     device = resolve_device(device)
     config = OptimizeConfig(image_scale=image_scale)
     demo = make_demonstration("put_onto", image_size=image_size, duration=(frames - 1) / FPS, fps=FPS)
-    h, w = demo.intrinsics.scaled(image_scale).image_size
-    intrinsics = demo.intrinsics.resized(h, w)
-    masks = torch.as_tensor(demo.mask_stack(h, w), device=device)
-    targets = MaskTargets(masks)
-    contact_signal = majority_filter(demo.contact)
-    contact = torch.as_tensor(contact_signal, dtype=torch.float32, device=device)
-    visible = (masks[:, 1].flatten(1).amax(1) > 0.5).float()
+    inputs = working_inputs(demo, config, device)
+    intrinsics, targets, contact = inputs.intrinsics, inputs.targets, inputs.contact
     weights, sigma = config.weights, config.sigma
 
-    guess = initial_guess(masks.cpu().numpy(), contact_signal, intrinsics, demo.num_static)
+    guess = initial_guess(inputs.masks.cpu().numpy(), inputs.contact_signal, intrinsics, demo.num_static)
     initial = InitialParameters(guess).to(device)
     truth = SceneTrajectories(
         **{k: torch.as_tensor(demo.truth[k], dtype=torch.float32) for k in SceneTrajectories.__dataclass_fields__}
     )
-    physical = PhysicalScene(
-        truth,
-        contact_signal,
-        demo.fps,
-        knots_per_second=config.knots_per_second,
-        pre_roll=config.pre_roll,
-        post_roll=config.post_roll,
-        grasp_level=2.0 * weights.grasp_margin,
-        physics=config.physics,
-    ).to(device)
+    physical = make_physical_scene(truth, inputs.contact_signal, demo.fps, config).to(device)
     return Problem(
         demo=demo,
         config=config,
@@ -133,7 +125,9 @@ def make_problem(
         stage_a=lambda: initialize.initial_objective(
             initial.scene(), targets, contact, intrinsics, demo.fps, weights, sigma
         ),
-        stage_b=lambda: physical_objective(physical(), targets, contact, visible, intrinsics, weights, sigma),
+        stage_b=lambda: physical_objective(
+            physical(), targets, contact, inputs.object_visible, intrinsics, weights, sigma
+        ),
     )
 
 
@@ -151,16 +145,7 @@ def iteration(module: torch.nn.Module, objective: Callable[[], dict[str, torch.T
 
 def median_seconds(fn: Callable[[], object], repeats: int, device: torch.device) -> float:
     """Median wall time [s] of ``repeats`` calls of ``fn`` after one warm-up call."""
-
-    def once() -> float:
-        start = time.perf_counter()
-        fn()
-        if device.type == "cuda":
-            torch.cuda.synchronize(device)
-        return time.perf_counter() - start
-
-    once()  # compilation, caches, allocator
-    return statistics.median(once() for _ in range(max(1, repeats)))
+    return timed(fn, max(1, repeats), device)[1]
 
 
 def bench_speed(

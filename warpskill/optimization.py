@@ -94,12 +94,9 @@ def optimize(
     torch.manual_seed(seed)
     store = _Checkpoint(checkpoint, _fingerprint(demo, config, seed))
 
-    h, w = demo.intrinsics.scaled(config.image_scale).image_size
-    intrinsics = demo.intrinsics.resized(h, w)
-    masks = torch.as_tensor(demo.mask_stack(h, w), device=device)
-    targets = MaskTargets(masks)
-    contact_signal = majority_filter(demo.contact)
-    contact = torch.as_tensor(contact_signal, dtype=torch.float32, device=device)
+    inputs = working_inputs(demo, config, device)
+    intrinsics, masks, targets = inputs.intrinsics, inputs.masks, inputs.targets
+    contact_signal, contact = inputs.contact_signal, inputs.contact
     weights, sigma = config.weights, config.sigma
 
     stage_a_loss, initial = float("inf"), None
@@ -125,20 +122,10 @@ def optimize(
         grasped = contact * (distance < 0)
         return _reconstruction(demo, fit, grasp, grasped, stage_a_loss)
 
-    scene = PhysicalScene(
-        fit,
-        contact_signal,
-        demo.fps,
-        knots_per_second=config.knots_per_second,
-        pre_roll=config.pre_roll,
-        post_roll=config.post_roll,
-        grasp_level=2.0 * weights.grasp_margin,
-        physics=config.physics,
-    ).to(device)
-    visible = (masks[:, 1].flatten(1).amax(1) > 0.5).float()
+    scene = make_physical_scene(fit, contact_signal, demo.fps, config).to(device)
     stage_b_loss = _minimise(
         scene,
-        lambda: physical_objective(scene(), targets, contact, visible, intrinsics, weights, sigma),
+        lambda: physical_objective(scene(), targets, contact, inputs.object_visible, intrinsics, weights, sigma),
         iterations=config.iterations,
         learning_rate=config.learning_rate,
         config=config,
@@ -149,6 +136,56 @@ def optimize(
     with torch.no_grad():
         result = scene()
     return _reconstruction(demo, result.scene, result.rollout.grasp, result.rollout.grasped, stage_b_loss)
+
+
+@dataclass
+class WorkingInputs:
+    """What both stages fit, at the working resolution.
+
+    Attributes:
+        intrinsics: the camera at the working resolution.
+        masks: (N, 2 + K, h, w) area-averaged masks: hand, object, statics.
+        targets: ``masks`` with their moments, for the dIoU.
+        contact_signal: (N,) bool, the majority-filtered contact.
+        contact: (N,) the same as floats on the device.
+        object_visible: (N,) 1 where the object's mask is not empty.
+    """
+
+    intrinsics: object
+    masks: torch.Tensor
+    targets: MaskTargets
+    contact_signal: np.ndarray
+    contact: torch.Tensor
+    object_visible: torch.Tensor
+
+
+def working_inputs(demo: Demonstration, config: OptimizeConfig, device: torch.device) -> WorkingInputs:
+    """The demonstration's masks and contact as the optimiser uses them (see :class:`WorkingInputs`)."""
+    h, w = demo.intrinsics.scaled(config.image_scale).image_size
+    masks = torch.as_tensor(demo.mask_stack(h, w), device=device)
+    contact_signal = majority_filter(demo.contact)
+    return WorkingInputs(
+        intrinsics=demo.intrinsics.resized(h, w),
+        masks=masks,
+        targets=MaskTargets(masks),
+        contact_signal=contact_signal,
+        contact=torch.as_tensor(contact_signal, dtype=torch.float32, device=device),
+        object_visible=(masks[:, 1].flatten(1).amax(1) > 0.5).float(),
+    )
+
+
+def make_physical_scene(fit: SceneTrajectories, contact_signal: np.ndarray, fps: float, config: OptimizeConfig) -> PhysicalScene:
+    """Stage (b)'s parameters started from the per-frame scene ``fit`` (on the CPU)."""
+    return PhysicalScene(
+        fit,
+        contact_signal,
+        fps,
+        knots_per_second=config.knots_per_second,
+        pre_roll=config.pre_roll,
+        post_roll=config.post_roll,
+        grasp_level=2.0 * config.weights.grasp_margin,
+        physics=config.physics,
+    )
 
 
 def resolve_device(device: str | torch.device | None) -> torch.device:
