@@ -27,7 +27,7 @@ def truth(action: str, seed: int) -> Reconstruction:
 @pytest.mark.parametrize(
     "action, seed",
     [("pick_up", 0), ("pull_left_to_right", 0), ("pull_right_to_left", 0), ("push_right_to_left", 1),
-     ("put_in_front_of", 0)],
+     ("put_in_front_of", 0), ("put_next_to", 0)],
 )
 def test_mujoco_replay_succeeds(action, seed):
     recon = truth(action, seed)
@@ -68,3 +68,28 @@ def test_unknown_engine():
     recon = truth("pick_up", 0)
     with pytest.raises(ValueError, match="unknown engine"):
         robot.replay(None, recon, engine="bullet")
+
+
+def test_cli_placement_moves_the_robot(tmp_path):
+    recon = truth("push_left_to_right", 0)
+    recon.save(tmp_path / "recon.npz")
+    assert main(["retarget", str(tmp_path / "recon.npz"), "-o", str(tmp_path / "a.npz")]) == 0
+    assert main(["retarget", str(tmp_path / "recon.npz"), "-o", str(tmp_path / "b.npz"),
+                 "--offset", "0.45", "0.05", "--yaw", "80"]) == 0
+    a, b = robot.RobotPlan.load(tmp_path / "a.npz"), robot.RobotPlan.load(tmp_path / "b.npz")
+    yaw = lambda base: np.degrees(np.arctan2(base[1, 0], base[0, 0]))  # noqa: E731
+    assert yaw(a.base) == pytest.approx(90.0) and yaw(b.base) == pytest.approx(80.0)
+    # The same scene centre sits at each requested offset in its base frame.
+    centre_a = a.base[:2, 3] + a.base[:2, :2] @ np.array([0.5, 0.0])
+    centre_b = b.base[:2, 3] + b.base[:2, :2] @ np.array([0.45, 0.05])
+    np.testing.assert_allclose(centre_a, centre_b, atol=1e-9)
+
+
+def test_cli_demo_runs_the_robot_steps(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "-o", str(out), "--action", "push_left_to_right", "--iterations", "5", "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    for name in ("reconstruction.npz", "plan.npz", "plan.csv", "replay.npz"):
+        assert (out / name).is_file(), printed
+    assert (out / "replay.mp4").is_file() or (out / "replay.png").is_file()
+    assert "replay: " in printed and printed.count("push_left_to_right: ") == 2

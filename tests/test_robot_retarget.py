@@ -23,8 +23,10 @@ UPPER = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
 SPEED = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
 
 # pull_right_to_left 0: the cuboid is too wide to grasp, the gripper hooks it; push_right_to_left 0: the
-# start violates the hard collision margin and is softened.
-CASES = [("pick_up", 0), ("push_left_to_right", 0), ("pull_right_to_left", 0), ("push_right_to_left", 0)]
+# start violates the hard collision margin and is softened; put_next_to 0: set down beside a taller box,
+# closer to it than a finger is thick.
+CASES = [("pick_up", 0), ("push_left_to_right", 0), ("pull_right_to_left", 0), ("push_right_to_left", 0),
+         ("put_next_to", 0)]
 
 
 def truth(action: str, seed: int) -> Reconstruction:
@@ -106,3 +108,22 @@ def test_wide_cuboid_is_pulled_with_a_hook(plans):
     plan = plans[("pull_right_to_left", 0)][1]
     assert plan.grasp_name.startswith("hook_") and plan.grasp_kind == "push"
     assert np.all(plan.gripper == 0.0)
+
+
+def test_set_down_beside_a_taller_box_leaves_room_for_the_fingers(plans):
+    recon, plan = plans[("put_next_to", 0)]
+    assert plan.grasp_kind == "grasp" and np.isfinite(plan.release_time)
+    # The deep grasp would put the hand on the static box: a shallow one, moved away from the box if needed.
+    assert plan.grasp_name.endswith("_shallow")
+    released = np.searchsorted(plan.t, plan.release_time)
+    k_off = np.flatnonzero(recon.grasped > 0.5)[-1] + 1
+    static = recon.static_pos[0]
+    demo_gap = np.linalg.norm(recon.object_pos[k_off, :2] - static[:2])
+    planned_gap = np.linalg.norm(_object_at(plan, released)[:2] - static[:2])
+    # Never nearer the box than demonstrated, at most 5 cm further.
+    assert demo_gap - 2e-3 <= planned_gap <= demo_gap + 0.05 + 2e-3
+
+
+def _object_at(plan, i):
+    """The object's centre [m] implied by the planned TCP pose at sample ``i``."""
+    return (plan.tcp[i] @ np.linalg.inv(plan.grasp_pose))[:3, 3]

@@ -1,6 +1,6 @@
 """The ``warpskill`` command line.
 
-    warpskill demo [-o OUT]                       synthesise, reconstruct, picture, evaluate
+    warpskill demo [-o OUT]                       synthesise, reconstruct, picture, evaluate, plan, replay
     warpskill optimize DEMO.npz -o OUT            one demonstration to OUT/reconstruction.npz
     warpskill evaluate RECON.npz [--action A]     the paper's success criteria
     warpskill retarget RECON.npz -o PLAN.npz      Panda plan (placo); also PLAN.csv
@@ -8,6 +8,8 @@
     warpskill bench kernels [--device cpu|cuda]   Warp kernel microbenchmarks
     warpskill bench speed [--device cpu|cuda]     Warp engine vs plain-Torch reference, per iteration
     warpskill bench synthetic [--seeds N]         the paper's success table on synthetic data
+    warpskill bench robot [--source truth|optimised] [--engines mujoco newton]
+                                                  plan and replay the 9 actions x N seeds on the Panda
     warpskill bench something-else --annotations A.json --phases P.csv --actions A.csv [-o OUT]
                                                   the same table on annotated real videos
 """
@@ -15,6 +17,8 @@
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
+import math
 import sys
 from pathlib import Path
 
@@ -40,7 +44,9 @@ def _parser() -> argparse.ArgumentParser:
     demo = commands.add_parser("demo", help="run the whole pipeline on an embedded synthetic demonstration")
     demo.add_argument("-o", "--out", type=Path, default=Path("warpskill-out/demo"), help="output folder")
     demo.add_argument("--action", default="put_onto", help="which action to synthesise (default: put_onto)")
+    demo.add_argument("--no-robot", action="store_true", help="stop after the reconstruction (no Panda plan or replay)")
     _add_optimise_options(demo)
+    _add_placement_options(demo)
     demo.set_defaults(run=_demo)
 
     optimise = commands.add_parser("optimize", help="reconstruct one demonstration .npz")
@@ -60,6 +66,7 @@ def _parser() -> argparse.ArgumentParser:
     retarget = commands.add_parser("retarget", help="plan a Franka Panda motion for a reconstruction (placo)")
     retarget.add_argument("reconstruction", type=Path, help="reconstruction .npz (FORMATS.md)")
     retarget.add_argument("-o", "--out", type=Path, required=True, help="plan .npz (a .csv is written beside it)")
+    _add_placement_options(retarget)
     retarget.set_defaults(run=_retarget)
 
     replay = commands.add_parser("replay", help="simulate a robot plan and check the action's success")
@@ -91,6 +98,15 @@ def _parser() -> argparse.ArgumentParser:
     synthetic.add_argument("--device", default="cpu")
     synthetic.add_argument("--iterations", type=int, help="physics-stage iterations (default: the library's)")
     synthetic.set_defaults(run=_bench_synthetic)
+    robot = bench.add_parser("robot", help="retarget synthetic reconstructions to the Panda and replay them")
+    robot.add_argument("--seeds", type=int, default=3)
+    robot.add_argument("--source", choices=("truth", "optimised"), default="truth",
+                       help="ground-truth reconstructions, or the optimiser's output on noisy demonstrations")
+    robot.add_argument("--engines", nargs="+", choices=("mujoco", "newton"), default=["mujoco"])
+    robot.add_argument("--actions", nargs="*", help="a subset of the actions (default: all 9)")
+    robot.add_argument("-o", "--out", type=Path, help="keep reconstructions and plans here (reused on a rerun)")
+    robot.add_argument("--device", default="cpu")
+    robot.set_defaults(run=_bench_robot)
     real = bench.add_parser("something-else", help="the paper's success table on annotated real videos")
     real.add_argument("--annotations", type=Path, required=True, help="Something-Else boxes (JSON)")
     real.add_argument("--phases", type=Path, required=True, help="action phases (CSV)")
@@ -108,6 +124,19 @@ def _add_optimise_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--iterations", type=int, default=None, help="physics-stage iterations")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def _add_placement_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--offset", type=float, nargs=2, default=(0.5, 0.0), metavar=("X", "Y"),
+                        help="scene centre in the robot base frame [m] (default: 0.5 0.0)")
+    parser.add_argument("--yaw", type=float, default=90.0,
+                        help="direction of the robot's forward axis in the world, about z [deg] (default: 90)")
+
+
+def _placement(args):
+    from .robot import Placement
+
+    return Placement(offset=tuple(args.offset), yaw=math.radians(args.yaw))
 
 
 def _reconstruct(demo, out: Path, args, *, init_only: bool = False, pictures: bool = True):
@@ -151,8 +180,37 @@ def _demo(args) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     demo.save(args.out / "demonstration.npz")
     print(f"demonstration: {args.out / 'demonstration.npz'} ({args.action}, {demo.num_frames} frames)")
-    _report(_reconstruct(demo, args.out, args), args.action)
+    recon = _reconstruct(demo, args.out, args)
+    _report(recon, args.action)
+    if args.no_robot:
+        return 0
+    missing = [name for name in ("placo", "mujoco", "example-robot-data") if not _installed(name)]
+    if missing:
+        print(f"robot steps skipped ({', '.join(missing)} not installed): pip install 'warpskill[robot]'")
+        return 0
+    from .robot import PlanError, replay, retarget
+    from .robot.video import record
+
+    try:
+        plan = retarget(recon, placement=_placement(args))
+    except PlanError as error:
+        print(f"robot plan: none: {error}")
+        return 0
+    _save_plan(plan, args.out / "plan.npz")
+    result = replay(plan, recon)
+    result.save(args.out / "replay.npz")
+    print(f"replay: {args.out / 'replay.npz'} (mujoco, {result.replay_time:.2f} s); "
+          f"picture: {record(plan, recon, result, args.out)}")
+    _report(result.reconstruction, args.action)
     return 0
+
+
+def _installed(distribution: str) -> bool:
+    try:
+        importlib.metadata.distribution(distribution)
+    except importlib.metadata.PackageNotFoundError:
+        return False
+    return True
 
 
 def _optimize(args) -> int:
@@ -183,13 +241,18 @@ def _retarget(args) -> int:
     from .reconstruction import Reconstruction
     from .robot import retarget
 
-    plan = retarget(Reconstruction.load(args.reconstruction))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    plan.save(args.out)
-    plan.save_csv(args.out.with_suffix(".csv"))
-    print(f"plan: {args.out} ({plan.num_samples} samples, {plan.t[-1]:.2f} s, grasp {plan.grasp_name}; "
-          f"planned in {plan.planning_time:.2f} s)")
+    plan = retarget(Reconstruction.load(args.reconstruction), placement=_placement(args))
+    _save_plan(plan, args.out)
     return 0
+
+
+def _save_plan(plan, path: Path) -> None:
+    """Write the plan's ``.npz`` and ``.csv`` and say so."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    plan.save(path)
+    plan.save_csv(path.with_suffix(".csv"))
+    print(f"plan: {path} ({plan.num_samples} samples, {plan.t[-1]:.2f} s, grasp {plan.grasp_name}; "
+          f"planned in {plan.planning_time:.2f} s)")
 
 
 def _replay(args) -> int:
@@ -232,6 +295,14 @@ def _bench_synthetic(args) -> int:
         seeds=args.seeds, noise=args.noise, actions=args.actions, out=args.out, device=args.device,
         iterations=args.iterations,
     )
+    return 0
+
+
+def _bench_robot(args) -> int:
+    from .bench_robot import bench_robot
+
+    bench_robot(seeds=args.seeds, source=args.source, engines=args.engines, actions=args.actions, out=args.out,
+                device=args.device)
     return 0
 
 

@@ -4,7 +4,9 @@ A pose is the tool-centre-point (TCP) frame in the cuboid's frame: TCP +z is the
 direction (into the object), TCP +y the direction the fingers open along. Families, with
 the cuboid's faces named by the world direction they face at the contact onset:
 
-- ``top_*``: from above, fingers across a horizontal edge length;
+- ``top_*``: from above, fingers across a horizontal edge length; ``top_*_shallow`` holds
+  the top :data:`SHALLOW_DEPTH` only, so the hand stays above a taller neighbour when the
+  object is set down beside it;
 - ``edge_*``: 45 degrees down onto the top edge of a side face, fingers across that face;
 - ``side_*``: horizontally onto a side face, fingers across it;
 - ``push_*``: closed fingers against a side face, 30, 45 or 60 degrees down, at the
@@ -29,6 +31,7 @@ from warpskill.robot.model import MAX_OPENING
 
 FIT_MARGIN = 0.006  # [m] the object must be this much narrower than the full opening
 TOP_DEPTH = 0.03  # [m] how far below the top face the finger pads' centre goes
+SHALLOW_DEPTH = 0.015  # [m] the same for a shallow top grasp
 EDGE_DEPTH = 0.025  # [m] how far past the top edge (along the approach) the pads' centre goes
 SIDE_DEPTH = 0.03  # [m] how far into a side face the pads' centre goes
 FINGERTIP_BELOW_TCP = 0.012  # [m] the finger pads end this far beyond the TCP along the approach
@@ -123,13 +126,15 @@ def candidate_poses(object_rot: np.ndarray, object_size: np.ndarray, *, push_hei
                 poses.append(GraspPose(f"hook_{face}_{tilt}", "push", _frame(a, np.eye(3)[j], position), 0.0,
                                        standoff))
     fits = lambda axis: size[axis] <= MAX_OPENING - FIT_MARGIN  # noqa: E731
-    depth = min(TOP_DEPTH, size[up_axis] - FINGERTIP_BELOW_TCP - 0.008)
-    for j in side_axes:
-        if fits(j):
-            for sign in (1.0, -1.0):
-                fingers = sign * np.eye(3)[j]
-                name = f"top_{_axis_name(object_rot @ np.eye(3)[j])[1]}{'' if sign > 0 else '_flip'}"
-                poses.append(GraspPose(name, "grasp", _frame(-up, fingers, up * (top - depth)), float(size[j])))
+    for top_depth, suffix in ((TOP_DEPTH, ""), (SHALLOW_DEPTH, "_shallow")):
+        depth = min(top_depth, size[up_axis] - FINGERTIP_BELOW_TCP - 0.008)
+        for j in side_axes:
+            if fits(j):
+                for sign in (1.0, -1.0):
+                    fingers = sign * np.eye(3)[j]
+                    name = f"top_{_axis_name(object_rot @ np.eye(3)[j])[1]}{'' if sign > 0 else '_flip'}{suffix}"
+                    poses.append(GraspPose(name, "grasp", _frame(-up, fingers, up * (top - depth)),
+                                           float(size[j])))
     for n, j, face in faces:
         if not fits(j):
             continue

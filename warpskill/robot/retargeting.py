@@ -54,7 +54,11 @@ TRACK_POSITION = 0.01  # [m] largest TCP position error accepted
 TRACK_ANGLE = 8.0  # [deg] largest TCP orientation error accepted
 CLEARANCE = 0.003  # [m] a carried object is kept this far above its support
 HOOK_PENALTY = 1000.0  # a pull hooks the cuboid only when no grasp is feasible
-SLOWDOWNS = (1.0, 1.7)  # the demonstration is replayed this many times slower when the robot lags
+SHALLOW_PENALTY = 100.0  # a shallow top grasp is taken only when the deeper ones are infeasible
+RELEASE_SHIFTS = (0.01, 0.02, 0.035, 0.05)  # [m] tried moves of the set-down place away from a static box, along the fingers
+SHIFT_PENALTY = 5000.0  # per metre of release shift
+SET_DOWN_HEIGHT = 0.1  # [m] the release pose's reachability is checked coming down from this high above it
+SLOWDOWNS = (1.0, 1.7, 3.0)  # the demonstration is replayed this many times slower when the robot lags
 
 
 def retarget(recon: Reconstruction, *, placement: Placement | None = None) -> RobotPlan:
@@ -98,6 +102,10 @@ def retarget(recon: Reconstruction, *, placement: Placement | None = None) -> Ro
                         "from the demonstrated side")
     planner = _Planner(scene)
     T_on = _pose(recon.object_pos[k_on], R_on)
+    T_off = None
+    if k_off is not None and not pushing:
+        T_off = _pose(recon.object_pos[k_off], recon.object_rot[k_off])
+        T_off = _lift_clear(T_off, recon.object_size, _support_height(scene, T_off, recon.object_size))
     statics = []
     for angle, pose in ranked:
         q, why = planner.static_ik(T_on @ pose.pose)
@@ -105,18 +113,26 @@ def retarget(recon: Reconstruction, *, placement: Placement | None = None) -> Ro
         if q is None or q_pre is None:
             statics.append((pose.name, why or why_pre))
             continue
+        shift = np.zeros(3)
+        if T_off is not None and pose.kind == "grasp":
+            shift, why_off = _release_shift(planner, scene, T_off, pose)
+            if shift is None:
+                statics.append((pose.name, f"at the release (frame {k_off}): {why_off}"))
+                continue
         cost = angle + 10.0 * float(np.abs(q - HOME_Q).sum()) + (HOOK_PENALTY if pose.standoff > 0 else 0.0)
-        statics.append((cost, pose))
-    feasible = sorted((item for item in statics if isinstance(item[1], GraspPose)), key=lambda item: item[0])
+        cost += SHALLOW_PENALTY if pose.name.endswith("_shallow") else 0.0
+        cost += SHIFT_PENALTY * float(np.linalg.norm(shift))
+        statics.append((cost, pose, shift))
+    feasible = sorted((item for item in statics if len(item) == 3), key=lambda item: item[0])
     if not feasible:
         reasons = "; ".join(f"{name}: {why}" for name, why in statics[:6])
         raise PlanError(f"frame {k_on} (t = {recon.t[k_on]:.2f} s, grasp onset): no feasible grasp pose "
                         f"({reasons})")
     failures = []
-    for _, pose in feasible[:4]:
+    for _, pose, shift in feasible[:4]:
         for slow in SLOWDOWNS:
             try:
-                plan = _plan(recon, scene, planner, pose, k_on, k_off, slow)
+                plan = _plan(recon, scene, planner, pose, k_on, k_off, slow, shift)
             except PlanError as error:
                 last = error
                 continue
@@ -124,6 +140,40 @@ def retarget(recon: Reconstruction, *, placement: Placement | None = None) -> Ro
             return plan
         failures.append(f"{pose.name}: {last}")
     raise PlanError("; ".join(failures))
+
+
+def _release_shift(planner: "_Planner", scene: Scene, T_off: np.ndarray, pose: GraspPose):
+    """The smallest horizontal move of the set-down pose ``T_off`` that the gripper can reach.
+
+    A finger needs room beside the object: where the demonstration sets the object down
+    closer to a static box than a finger's thickness, the set-down place is moved away from
+    the nearest static box along the finger axis by one of :data:`RELEASE_SHIFTS`.
+
+    Returns:
+        ``(shift (3,) [m], "")`` or ``(None, why)``.
+    """
+    def reachable(T_obj: np.ndarray) -> str:
+        # Come down from above, as the carry does, so the IK does not catch on the box's edge.
+        q_above, why = planner.static_ik(_translate(0, 0, SET_DOWN_HEIGHT) @ T_obj @ pose.pose)
+        return why or planner.static_ik(T_obj @ pose.pose, q_above)[1]
+
+    why = reachable(T_off)
+    if not why:
+        return np.zeros(3), ""
+    if len(scene.static_pos) == 0:
+        return None, why
+    fingers = (T_off @ pose.pose)[:3, 1].copy()
+    fingers[2] = 0.0
+    if np.linalg.norm(fingers) < 0.5:
+        return None, why
+    fingers /= np.linalg.norm(fingers)
+    nearest = scene.static_pos[np.argmin(np.linalg.norm(scene.static_pos - T_off[:3, 3], axis=1))]
+    away = fingers if fingers @ (T_off[:3, 3] - nearest) >= 0 else -fingers
+    for distance in RELEASE_SHIFTS:
+        shifted = _translate(*(distance * away)) @ T_off
+        if not reachable(shifted):
+            return distance * away, ""
+    return None, f"{why}; also when set down up to {100 * RELEASE_SHIFTS[-1]:.0f} cm further from the static box"
 
 
 def _pose(pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
@@ -180,10 +230,12 @@ def _lift_clear(T_obj: np.ndarray, size: np.ndarray, floor: float) -> np.ndarray
     return T_obj
 
 
-def _targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_off: int | None, slow: float):
+def _targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_off: int | None, slow: float,
+             shift: np.ndarray):
     """Plan samples: times, reconstruction times, TCP targets (T, 4, 4), gripper openings, events.
 
-    The demonstration is played ``slow`` times slower than recorded.
+    The demonstration is played ``slow`` times slower than recorded; the carried object
+    drifts linearly by ``shift`` (3,) [m] from the grasp to the release.
     """
     step = DT / slow
     t_on = float(recon.t[k_on])
@@ -222,6 +274,8 @@ def _targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_
 
     def hold_target(tau: float) -> np.ndarray:
         T_obj = _interp_pose(recon, tau)
+        if t_off is not None:
+            T_obj[:3, 3] += shift * float(np.clip((tau - t_on) / max(t_off - t_on, 1e-9), 0.0, 1.0))
         if pose.kind == "push":
             T = G.copy()
             T[:2, 3] += T_obj[:2, 3] - T_on[:2, 3]
@@ -265,10 +319,11 @@ def _interp_hand(recon: Reconstruction, tau: float) -> np.ndarray:
     return np.array([np.interp(tau, recon.t, recon.hand_pos[:, i]) for i in range(3)])
 
 
-def _plan(recon, scene, planner: "_Planner", pose: GraspPose, k_on: int, k_off: int | None, slow: float) -> RobotPlan:
+def _plan(recon, scene, planner: "_Planner", pose: GraspPose, k_on: int, k_off: int | None, slow: float,
+          shift: np.ndarray) -> RobotPlan:
     """Run the differential IK along the targets of ``pose``; raise PlanError on a tracking failure."""
     times, taus, targets, grips, start_time, grasp_time, release_time = _targets(
-        recon, scene, pose, k_on, k_off, slow)
+        recon, scene, pose, k_on, k_off, slow, shift)
     fps = float(recon.fps)
     qs, tcps = planner.track(targets, grips, lead_in=int(round(LEAD_IN / DT)),
                              frame_of=lambda i: (int(round(taus[i] * fps)), taus[i]))
