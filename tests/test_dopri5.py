@@ -180,11 +180,9 @@ def test_gradients_match_finite_differences_across_the_release(put_onto_rollouts
 
 
 def test_bench_engine_swaps_the_rollout_only():
-    from warpskill import initialize, physical_scene
-    from warpskill.bench_speed import engine
+    from warpskill.bench_speed import backend
     from warpskill.render import render_silhouettes
 
-    with engine("dopri5"):
-        assert physical_scene.simulate is simulate_dopri5
-        assert initialize.render_silhouettes is render_silhouettes
-    assert physical_scene.simulate is simulate
+    engine = backend("dopri5")
+    assert engine.simulate is simulate_dopri5 and engine.render is render_silhouettes
+    assert backend("warp").simulate is simulate

@@ -3,7 +3,7 @@
 The public API, loaded on first use (so the command line starts fast):
 
 - data: :class:`Demonstration`, :class:`Reconstruction`, :data:`ACTIONS`
-- reconstruction: :func:`optimize`, :class:`OptimizeConfig`, :class:`LossWeights`
+- reconstruction: :func:`optimize`, :func:`optimize_many`, :class:`OptimizeConfig`, :class:`LossWeights`
 - metric: :func:`evaluate`
 - engine: :func:`simulate`, :class:`PhysicsConfig`, :func:`render_silhouettes`
 - synthetic data: :func:`make_demonstration`
@@ -23,6 +23,7 @@ _EXPORTS = {
     "Reconstruction": "reconstruction",
     "ReconstructionError": "reconstruction",
     "optimize": "optimization",
+    "optimize_many": "optimization",
     "OptimizeConfig": "optimization",
     "LossWeights": "weights",
     "evaluate": "evaluation",

@@ -20,21 +20,20 @@ plateau schedule may stop stage (b) early) or, with ``measure_full``, timed by r
 
 from __future__ import annotations
 
-import contextlib
+import copy
 import time
 from dataclasses import dataclass
-from typing import Callable, Iterator, Sequence
-from unittest import mock
+from typing import Callable, Sequence
 
 import torch
 
-from . import initialize, physical_scene
-from .camera import Intrinsics
-from .demonstration import Demonstration
-from .initialize import OBJECT_DEPTH_HYPOTHESES, InitialParameters, SceneTrajectories, initial_guess
+from .batching import Backend, render_many, simulate_many
 from .bench import timed
+from .demonstration import Demonstration
+from .initialize import OBJECT_DEPTH_HYPOTHESES, InitialParameters, SceneTrajectories, initial_guess, initial_objective
 from .optimization import (
     OptimizeConfig,
+    WorkingInputs,
     make_physical_scene,
     optimize,
     physical_objective,
@@ -43,37 +42,28 @@ from .optimization import (
 )
 from .physical_scene import PhysicalScene
 from .reference import render_reference, simulate_dopri5, simulate_reference
-from .synthetic import make_demonstration, scripted_inputs, scripted_scene
+from .synthetic import make_demonstration
 
 ENGINES = ("warp", "reference", "dopri5")
 DEFAULT_ENGINES = ("warp", "reference")  # dopri5's stage (b) iteration takes seconds
 FPS = 12.0
 
 
-@contextlib.contextmanager
-def engine(name: str) -> Iterator[None]:
-    """Run warpskill's optimisation on the engine ``name`` (one of :data:`ENGINES`) inside the block.
+def backend(name: str) -> Backend:
+    """The engine ``name`` (one of :data:`ENGINES`) as the optimiser's :class:`~warpskill.batching.Backend`.
 
-    ``reference`` swaps the rollout of the physics stage and the renderer of both stages
-    for their plain-Torch references; ``dopri5`` swaps the rollout only, for the dopri5
-    baseline; ``warp`` changes nothing.
+    ``reference`` is the plain-Torch rollout and renderer; ``dopri5`` the dopri5 rollout
+    with Warp's renderer; ``warp`` the Warp engine.
     """
     if name not in ENGINES:
         raise ValueError(f"engine must be one of {ENGINES}, got {name!r}")
-    if name == "warp":
-        yield
-        return
+    if name == "reference":
+        return Backend(name, simulate_reference, render_reference)
     if name == "dopri5":
         if simulate_dopri5 is None:
             raise ValueError("engine 'dopri5' needs torchdiffeq: pip install 'warpskill[baselines]'")
-        with mock.patch.object(physical_scene, "simulate", simulate_dopri5):
-            yield
-        return
-    with (
-        mock.patch.object(physical_scene, "simulate", simulate_reference),
-        mock.patch.object(initialize, "render_silhouettes", render_reference),
-    ):
-        yield
+        return Backend(name, simulate=simulate_dopri5)
+    return Backend()
 
 
 @dataclass
@@ -83,18 +73,36 @@ class Problem:
     Attributes:
         demo: the demonstration.
         config: the optimisation settings.
+        inputs: the masks and contact at the working resolution.
         initial: stage (a) parameters (the first depth hypothesis's initial guess).
         physical: stage (b) parameters, started from the demonstration's ground truth.
-        stage_a: stage (a) loss terms of ``initial``.
-        stage_b: stage (b) loss terms of ``physical``.
     """
 
     demo: Demonstration
     config: OptimizeConfig
+    inputs: WorkingInputs
     initial: InitialParameters
     physical: PhysicalScene
-    stage_a: Callable[[], dict[str, torch.Tensor]]
-    stage_b: Callable[[], dict[str, torch.Tensor]]
+
+    def stage_a(self, engine: Backend) -> dict[str, torch.Tensor]:
+        """Stage (a) loss terms of :attr:`initial` on ``engine``."""
+        scene = self.initial.scene()
+        [rendered] = render_many([scene], [self.inputs.intrinsics], self.config.sigma, engine.render)
+        return initial_objective(scene, rendered, self.inputs.targets, self.inputs.contact, self.demo.fps,
+                                 self.config.weights)
+
+    def stage_b(self, engine: Backend, scenes: Sequence[PhysicalScene] | None = None) -> dict[str, torch.Tensor]:
+        """Stage (b) loss terms of :attr:`physical` (or of ``scenes`` fitting the same masks, summed)
+        on ``engine``, with the batched calls of :func:`warpskill.optimize_many`."""
+        scenes = list(scenes or [self.physical])
+        rollouts = simulate_many([scene.simulation_inputs() for scene in scenes], engine.simulate)
+        results = [scene.assemble(rollout) for scene, rollout in zip(scenes, rollouts)]
+        given = self.inputs
+        rendered = render_many([r.scene for r in results], [given.intrinsics] * len(scenes), self.config.sigma,
+                               engine.render)
+        terms = [physical_objective(r, masks, given.targets, given.contact, given.object_visible, self.config.weights)
+                 for r, masks in zip(results, rendered)]
+        return {name: sum(t[name] for t in terms) for name in terms[0]}
 
 
 def make_problem(
@@ -108,34 +116,27 @@ def make_problem(
     config = OptimizeConfig(image_scale=image_scale)
     demo = make_demonstration("put_onto", image_size=image_size, duration=(frames - 1) / FPS, fps=FPS)
     inputs = working_inputs(demo, config, device)
-    intrinsics, targets, contact = inputs.intrinsics, inputs.targets, inputs.contact
-    weights, sigma = config.weights, config.sigma
-
-    guess = initial_guess(inputs.masks.cpu().numpy(), inputs.contact_signal, intrinsics, demo.num_static)
-    initial = InitialParameters(guess).to(device)
+    guess = initial_guess(inputs.masks.cpu().numpy(), inputs.contact_signal, inputs.intrinsics, demo.num_static)
     truth = SceneTrajectories(
         **{k: torch.as_tensor(demo.truth[k], dtype=torch.float32) for k in SceneTrajectories.__dataclass_fields__}
     )
-    physical = make_physical_scene(truth, inputs.contact_signal, demo.fps, config).to(device)
     return Problem(
         demo=demo,
         config=config,
-        initial=initial,
-        physical=physical,
-        stage_a=lambda: initialize.initial_objective(
-            initial.scene(), targets, contact, intrinsics, demo.fps, weights, sigma
-        ),
-        stage_b=lambda: physical_objective(
-            physical(), targets, contact, inputs.object_visible, intrinsics, weights, sigma
-        ),
+        inputs=inputs,
+        initial=InitialParameters(guess).to(device),
+        physical=make_physical_scene(truth, inputs.contact_signal, demo.fps, config).to(device),
     )
 
 
-def iteration(module: torch.nn.Module, objective: Callable[[], dict[str, torch.Tensor]]) -> Callable[[], float]:
-    """One optimisation iteration's work: the loss terms' sum and its backward pass."""
+def iteration(module: torch.nn.Module, objective: Callable[[], dict[str, torch.Tensor]], *,
+              modules: Sequence[torch.nn.Module] = ()) -> Callable[[], float]:
+    """One optimisation iteration's work: the loss terms' sum and its backward pass
+    (gradients of ``module``, or of all ``modules``, cleared first)."""
 
     def run() -> float:
-        module.zero_grad(set_to_none=True)
+        for each in modules or [module]:
+            each.zero_grad(set_to_none=True)
         loss = sum(objective().values())
         loss.backward()
         return loss.item()
@@ -186,15 +187,15 @@ def bench_speed(
         problem = make_problem(device=device)
         config = problem.config
         for name in engines:
-            with engine(name):
-                stage_a = median_seconds(iteration(problem.initial, problem.stage_a), repeats, device)
-                stage_b = median_seconds(iteration(problem.physical, problem.stage_b), repeats, device)
-                estimate = len(OBJECT_DEPTH_HYPOTHESES) * config.init_iterations * stage_a + config.iterations * stage_b
-                measured = None
-                if measure_full:
-                    start = time.perf_counter()
-                    optimize(problem.demo, device=device, progress=False)
-                    measured = time.perf_counter() - start
+            engine = backend(name)
+            stage_a = median_seconds(iteration(problem.initial, lambda: problem.stage_a(engine)), repeats, device)
+            stage_b = median_seconds(iteration(problem.physical, lambda: problem.stage_b(engine)), repeats, device)
+            estimate = len(OBJECT_DEPTH_HYPOTHESES) * config.init_iterations * stage_a + config.iterations * stage_b
+            measured = None
+            if measure_full:
+                start = time.perf_counter()
+                optimize(problem.demo, device=device, progress=False, backend=engine)
+                measured = time.perf_counter() - start
             rows.append(dict(engine=name, device=str(device), stage_a_s=stage_a, stage_b_s=stage_b,
                              full_estimate_s=estimate, full_measured_s=measured))
     _print_table(rows, problem, repeats)
@@ -244,9 +245,8 @@ def bench_scaling(
     """Stage (b) iteration time [ms] as the frames, the working image size and the batch grow.
 
     Frames and image size vary one at a time about the default problem (50 frames, 240 x
-    427 masks at scale 0.25). A batch of B is the engine work of B put_onto scenes: one
-    rollout of B scenes and one rendering of their B x 50 frames, forward and backward
-    (warpskill optimises one demonstration at a time today).
+    427 masks at scale 0.25). A batch of B is one iteration of :func:`warpskill.optimize_many`
+    over B scenes: one rollout of all of them and one rendering of their B x 50 frames.
     Prints a table and returns its rows.
     """
     rows = []
@@ -260,16 +260,19 @@ def bench_scaling(
             h, w = problem.demo.intrinsics.scaled(problem.config.image_scale).image_size
             row = dict(case=label, device=str(device), frames=problem.demo.num_frames, image=f"{h}x{w}", batch=1)
             for name in engines:
-                with engine(name):
-                    row[name] = median_seconds(iteration(problem.physical, problem.stage_b), repeats, device)
+                engine = backend(name)
+                row[name] = median_seconds(iteration(problem.physical, lambda: problem.stage_b(engine)), repeats,
+                                           device)
             rows.append(row)
-        scale, sigma = OptimizeConfig().image_scale, OptimizeConfig().sigma
-        h, w = Intrinsics.default(240, 427).scaled(scale).image_size
+        problem = make_problem(device=device)
+        h, w = problem.inputs.intrinsics.image_size
         for batch in batches:
             row = dict(case=f"batch {batch}", device=str(device), frames=50, image=f"{h}x{w}", batch=batch)
+            scenes = [copy.deepcopy(problem.physical) for _ in range(batch)]
             for name in engines:
-                with engine(name):
-                    row[name] = median_seconds(_batched(batch, scale, sigma, device), repeats, device)
+                engine = backend(name)
+                row[name] = median_seconds(
+                    iteration(scenes[0], lambda: problem.stage_b(engine, scenes), modules=scenes), repeats, device)
             rows.append(row)
     print(f"stage (b) iteration [ms] (median of {repeats})")
     print(f"{'case':<12} {'device':<7} {'frames':>6} {'image':>8} {'B':>3} " + " ".join(f"{n:>10}" for n in engines)
@@ -281,42 +284,29 @@ def bench_scaling(
     return rows
 
 
-def _batched(batch: int, image_scale: float, sigma: float, device: torch.device) -> Callable[[], float]:
-    """Engine work of ``batch`` put_onto scenes (50 frames): one rollout of all of them and one
-    rendering of their ``batch`` x 50 frames, forward and backward (a stand-in loss)."""
-    duration = 49 / FPS
-    script = scripted_scene("put_onto", duration=duration)
-    inputs = scripted_inputs(script, FPS, duration, dtype=torch.float32)
-    tensors = {
-        k: v.to(device).expand(batch, *v.shape[1:]).clone().requires_grad_(True)
-        for k, v in inputs.items()
-        if torch.is_tensor(v)
-    }
-    options = {k: v for k, v in inputs.items() if not torch.is_tensor(v)}
-    camera = [
-        torch.tensor(x, dtype=torch.float32, device=device) for x in (script.camera_height, script.camera_elevation)
-    ]
-    intrinsics = Intrinsics.default(240, 427).scaled(image_scale)
+def bench_many(*, batches: Sequence[int] = (1, 8), devices: Sequence[str] = ("cpu",)) -> list[dict]:
+    """Demonstrations per second of :func:`warpskill.optimize_many` with the default settings.
 
-    def run() -> float:
-        for tensor in tensors.values():
-            tensor.grad = None
-        out = physical_scene.simulate(**tensors, **options)
-        B, N = out.hand_pos.shape[:2]
-        statics = [tensors[k][:, None].expand(B, N, *tensors[k].shape[1:]) for k in ("static_pos", "static_rot")]
-        sizes = torch.cat([tensors["object_size"][:, None], tensors["static_size"]], 1)  # (B, 1 + K, 3)
-        masks = initialize.render_silhouettes(
-            out.hand_pos.flatten(0, 1),
-            out.hand_rot.flatten(0, 1),
-            torch.cat([out.object_pos[:, :, None], statics[0]], 2).flatten(0, 1),
-            torch.cat([out.object_rot[:, :, None], statics[1]], 2).flatten(0, 1),
-            sizes[:, None].expand(B, N, -1, 3).flatten(0, 1),
-            *camera,
-            intrinsics,
-            sigma=sigma,
-        )
-        loss = masks.mean() + out.object_pos.square().mean()
-        loss.backward()
-        return loss.item()
+    A batch of B is B synthetic demonstrations (the 9 actions in turn, 50 frames of 240 x
+    427, moderate noise), both stages, optimised together. Prints a table and returns its rows.
+    """
+    from .actions import ACTIONS
+    from .evaluation import evaluate
+    from .optimization import optimize_many
 
-    return run
+    rows = []
+    for device in map(resolve_device, devices):
+        for batch in batches:
+            demos = [make_demonstration(ACTIONS[i % len(ACTIONS)], seed=i // len(ACTIONS), fps=FPS,
+                                        duration=49 / FPS) for i in range(batch)]
+            start = time.perf_counter()
+            reconstructions = optimize_many(demos, device=device, progress=False)
+            seconds = time.perf_counter() - start
+            succeeded = sum(evaluate(r, d.action).success for r, d in zip(reconstructions, demos))
+            rows.append(dict(device=str(device), batch=batch, seconds=seconds, rate=batch / seconds,
+                             succeeded=succeeded))
+    print("warpskill.optimize_many, default settings, both stages")
+    print(f"{'device':<7} {'B':>4} {'total [s]':>10} {'demos/s':>8} {'succeeded':>10}")
+    for r in rows:
+        print(f"{r['device']:<7} {r['batch']:>4} {r['seconds']:>10.1f} {r['rate']:>8.3f} {r['succeeded']:>6}/{r['batch']}")
+    return rows

@@ -347,15 +347,22 @@ def _far_from_contact(contact: torch.Tensor, margin: int) -> torch.Tensor:
 
 def initial_objective(
     scene: SceneTrajectories,
+    rendered: torch.Tensor,
     targets: MaskTargets,
     contact: torch.Tensor,
-    intrinsics: Intrinsics,
     fps: float,
     weights: LossWeights,
-    sigma: float,
 ) -> dict[str, torch.Tensor]:
-    """Stage (a) loss terms: perceptual, contact distance, smoothness and resting priors."""
-    rendered = render_scene(scene, intrinsics, sigma)
+    """Stage (a) loss terms: perceptual, contact distance, smoothness and resting priors.
+
+    Args:
+        scene: the per-frame scene.
+        rendered: (N, 2 + K, h, w) its soft silhouettes at the working resolution.
+        targets: the masks at the working resolution.
+        contact: (N,) contact signal in {0, 1}.
+        fps: frame rate [1/s].
+        weights: loss weights.
+    """
     tip_distance = box_signed_distance(scene.hand_pos, scene.object_pos, scene.object_rot, scene.object_size)
     c = contact.to(tip_distance.dtype)
 

@@ -14,12 +14,13 @@ import hashlib
 import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 import torch
 from tqdm.auto import tqdm
 
+from .batching import Backend, render_many, simulate_many
 from .demonstration import Demonstration
 from .distances import box_signed_distance
 from .losses import MaskTargets
@@ -30,7 +31,6 @@ from .initialize import (
     initial_guess,
     initial_objective,
     perceptual_loss,
-    render_scene,
 )
 from .physical_scene import PhysicalRollout, PhysicalScene
 from .physics import PhysicsConfig
@@ -70,6 +70,7 @@ def optimize(
     config: OptimizeConfig | None = None,
     init_only: bool = False,
     checkpoint: str | os.PathLike | None = None,
+    backend: Backend | None = None,
 ) -> Reconstruction:
     """Reconstruct physically admissible hand and object trajectories from a demonstration.
 
@@ -83,59 +84,118 @@ def optimize(
         init_only: stop after stage (a) (the paper's "initialisation only" ablation).
         checkpoint: a file where the run saves its state and best result as it goes; an
             existing checkpoint of the same demonstration and settings is resumed.
+        backend: the rollout and rasterizer (default: the Warp engine).
 
     Returns:
         The reconstruction, in the world frame of FORMATS.md, at the video's frames.
     """
+    return optimize_many([demo], device=device, iterations=iterations, seed=seed, progress=progress, config=config,
+                         init_only=init_only, checkpoint=checkpoint, backend=backend)[0]
+
+
+def optimize_many(
+    demos: Sequence[Demonstration],
+    *,
+    device: str | torch.device | None = None,
+    iterations: int | None = None,
+    seed: int = 0,
+    progress: bool = True,
+    config: OptimizeConfig | None = None,
+    init_only: bool = False,
+    checkpoint: str | os.PathLike | None = None,
+    backend: Backend | None = None,
+) -> list[Reconstruction]:
+    """Reconstruct B demonstrations side by side: :func:`optimize` on each, in shared engine calls.
+
+    Every iteration rolls out all B scenes in one engine call and renders all their frames
+    in one raster launch (per group of demonstrations that share the frame rate, the
+    intrinsics, the working image size and the number of static objects; see
+    :mod:`warpskill.batching`). Each demonstration keeps its own parameters, learning-rate
+    schedule, early stop and best result, so each reconstruction is the one
+    :func:`optimize` would return, up to floating-point rounding.
+
+    Args:
+        demos: the demonstrations.
+        device, iterations, seed, progress, config, init_only, backend: as :func:`optimize`.
+        checkpoint: one file for the whole batch (resumed only for the same demonstrations
+            and settings).
+
+    Returns:
+        One reconstruction per demonstration, in order.
+
+    Raises:
+        ValueError: no demonstrations.
+    """
+    if len(demos) == 0:
+        raise ValueError("optimize_many needs at least one demonstration")
     config = config or OptimizeConfig()
     if iterations is not None:
         config = replace(config, iterations=int(iterations))
+    backend = backend or Backend()
     device = resolve_device(device)
     torch.manual_seed(seed)
-    store = _Checkpoint(checkpoint, _fingerprint(demo, config, seed))
-
-    inputs = working_inputs(demo, config, device)
-    intrinsics, masks, targets = inputs.intrinsics, inputs.masks, inputs.targets
-    contact_signal, contact = inputs.contact_signal, inputs.contact
+    store = _Checkpoint(checkpoint, _fingerprint(demos, config, seed, backend))
+    inputs = [working_inputs(demo, config, device) for demo in demos]
     weights, sigma = config.weights, config.sigma
 
-    stage_a_loss, initial = float("inf"), None
-    for hypothesis in OBJECT_DEPTH_HYPOTHESES:
-        guess = initial_guess(masks.cpu().numpy(), contact_signal, intrinsics, demo.num_static, object_depth=hypothesis)
-        candidate = InitialParameters(guess).to(device)
-        loss = _minimise(
-            candidate,
-            lambda: initial_objective(candidate.scene(), targets, contact, intrinsics, demo.fps, weights, sigma),
-            iterations=config.init_iterations,
-            learning_rate=config.init_learning_rate,
-            config=config,
-            progress=progress,
-            label=f"initialisation ({hypothesis})",
-            store=store,
-        )
-        if loss < stage_a_loss:
-            stage_a_loss, initial = loss, candidate
-    fit = initial.scene().detached()
-    if init_only:
-        grasp = (2 * contact - 1) * weights.grasp_margin
-        distance = box_signed_distance(fit.hand_pos, fit.object_pos, fit.object_rot, fit.object_size)
-        grasped = contact * (distance < 0)
-        return _reconstruction(demo, fit, grasp, grasped, stage_a_loss)
+    # Stage (a): every demonstration from each object-depth hypothesis; the lower loss wins.
+    owners, candidates = [], []
+    for i, (demo, given) in enumerate(zip(demos, inputs)):
+        for hypothesis in OBJECT_DEPTH_HYPOTHESES:
+            guess = initial_guess(given.masks.cpu().numpy(), given.contact_signal, given.intrinsics, demo.num_static,
+                                  object_depth=hypothesis)
+            owners.append(i)
+            candidates.append(InitialParameters(guess).to(device))
 
-    scene = make_physical_scene(fit, contact_signal, demo.fps, config).to(device)
-    stage_b_loss = _minimise(
-        scene,
-        lambda: physical_objective(scene(), targets, contact, inputs.object_visible, intrinsics, weights, sigma),
-        iterations=config.iterations,
-        learning_rate=config.learning_rate,
-        config=config,
-        progress=progress,
-        label="physics",
-        store=store,
-    )
+    def stage_a(live: list[int]) -> list[dict[str, torch.Tensor]]:
+        scenes = [candidates[j].scene() for j in live]
+        rendered = render_many(scenes, [inputs[owners[j]].intrinsics for j in live], sigma, backend.render)
+        return [
+            initial_objective(scene, masks, inputs[owners[j]].targets, inputs[owners[j]].contact,
+                              demos[owners[j]].fps, weights)
+            for j, scene, masks in zip(live, scenes, rendered)
+        ]
+
+    losses = _minimise(candidates, stage_a, iterations=config.init_iterations,
+                       learning_rate=config.init_learning_rate, config=config, progress=progress,
+                       label="initialisation", store=store)
+    fits, stage_a_losses = [], []
+    for i in range(len(demos)):
+        j = min((j for j in range(len(owners)) if owners[j] == i), key=lambda j: losses[j])
+        fits.append(candidates[j].scene().detached())
+        stage_a_losses.append(losses[j])
+    if init_only:
+        reconstructions = []
+        for demo, given, fit, loss in zip(demos, inputs, fits, stage_a_losses):
+            grasp = (2 * given.contact - 1) * weights.grasp_margin
+            distance = box_signed_distance(fit.hand_pos, fit.object_pos, fit.object_rot, fit.object_size)
+            reconstructions.append(_reconstruction(demo, fit, grasp, given.contact * (distance < 0), loss))
+        return reconstructions
+
+    # Stage (b): the physics.
+    scenes = [make_physical_scene(fit, given.contact_signal, demo.fps, config).to(device)
+              for demo, given, fit in zip(demos, inputs, fits)]
+
+    def simulate_scenes(live: list[int]) -> list[PhysicalRollout]:
+        rollouts = simulate_many([scenes[b].simulation_inputs() for b in live], backend.simulate)
+        return [scenes[b].assemble(rollout) for b, rollout in zip(live, rollouts)]
+
+    def stage_b(live: list[int]) -> list[dict[str, torch.Tensor]]:
+        results = simulate_scenes(live)
+        rendered = render_many([r.scene for r in results], [inputs[b].intrinsics for b in live], sigma, backend.render)
+        return [
+            physical_objective(result, masks, inputs[b].targets, inputs[b].contact, inputs[b].object_visible, weights)
+            for b, result, masks in zip(live, results, rendered)
+        ]
+
+    losses = _minimise(scenes, stage_b, iterations=config.iterations, learning_rate=config.learning_rate,
+                       config=config, progress=progress, label="physics", store=store)
     with torch.no_grad():
-        result = scene()
-    return _reconstruction(demo, result.scene, result.rollout.grasp, result.rollout.grasped, stage_b_loss)
+        results = simulate_scenes(list(range(len(demos))))
+    return [
+        _reconstruction(demo, result.scene, result.rollout.grasp, result.rollout.grasped, loss)
+        for demo, result, loss in zip(demos, results, losses)
+    ]
 
 
 @dataclass
@@ -220,28 +280,25 @@ def majority_filter(signal: np.ndarray, window: int = 5) -> np.ndarray:
 
 def physical_objective(
     result: PhysicalRollout,
+    rendered: torch.Tensor,
     targets: MaskTargets,
     contact: torch.Tensor,
     object_visible: torch.Tensor,
-    intrinsics,
     weights: LossWeights,
-    sigma: float,
 ) -> dict[str, torch.Tensor]:
     """Stage (b) loss terms: perceptual, velocity regularisation, contact, stability.
 
     Args:
         result: the simulated scene.
+        rendered: (N, 2 + K, h, w) its soft silhouettes at the working resolution.
         targets: (N, 2 + K, h, w) masks at the working resolution.
         contact: (N,) contact signal in {0, 1}.
         object_visible: (N,) 1 where the object's mask is not empty.
-        intrinsics: working-resolution intrinsics.
         weights: loss weights.
-        sigma: soft edge width [px].
 
     Returns:
         Named weighted terms; the loss is their sum.
     """
-    rendered = render_scene(result.scene, intrinsics, sigma)
     rollout = result.rollout
     object_speed = rollout.object_vel.square().sum(-1) + rollout.object_ang_vel.square().sum(-1)
     margin = weights.grasp_margin
@@ -261,8 +318,8 @@ def physical_objective(
 
 
 def _minimise(
-    module: torch.nn.Module,
-    objective: Callable[[], dict[str, torch.Tensor]],
+    modules: Sequence[torch.nn.Module],
+    objective: Callable[[list[int]], list[dict[str, torch.Tensor]]],
     *,
     iterations: int,
     learning_rate: float,
@@ -270,61 +327,106 @@ def _minimise(
     progress: bool,
     label: str,
     store: "_Checkpoint",
-) -> float:
-    """Adam (amsgrad) with reduce-on-plateau; leaves ``module`` at its best parameters.
+) -> list[float]:
+    """Adam (amsgrad) with reduce-on-plateau, per module; leaves each module at its best parameters.
 
-    ``objective`` returns named loss terms whose sum is minimised.
+    ``objective(live)`` returns the named loss terms of the modules ``live`` (indices), whose
+    sums are minimised. Each module has its own learning rate and schedule (its own Adam
+    parameter group) and stops once its rate has decayed; the others go on.
 
     Returns:
-        The best loss reached.
+        The best loss each module reached.
     """
-    optimizer = torch.optim.Adam(module.parameters(), lr=learning_rate, amsgrad=True)
-    schedule = torch.optim.lr_scheduler.ReduceLROnPlateau(
-        optimizer, factor=config.plateau_factor, patience=config.plateau_patience
-    )
-    best_loss, best_state, start = float("inf"), _copy_state(module), 0
+    count = len(modules)
+    optimizer = torch.optim.Adam([{"params": list(m.parameters())} for m in modules], lr=learning_rate, amsgrad=True)
+    plateaus = [_Plateau(config.plateau_patience, config.plateau_factor) for _ in modules]
+    best_loss, best_state, start = [float("inf")] * count, [_copy_state(m) for m in modules], 0
     saved = store.load(label)
     if saved is not None:
-        module.load_state_dict(saved["module"])
+        for module, state in zip(modules, saved["modules"]):
+            module.load_state_dict(state)
         optimizer.load_state_dict(saved["optimizer"])
-        schedule.load_state_dict(saved["schedule"])
+        for plateau, state in zip(plateaus, saved["plateaus"]):
+            plateau.best, plateau.bad = state
         best_loss, best_state, start = saved["best_loss"], saved["best_state"], saved["iteration"]
+    groups = optimizer.param_groups  # after loading: load_state_dict replaces the group dicts
+
+    def save(iteration: int) -> None:
+        store.save(label, dict(
+            modules=[m.state_dict() for m in modules], optimizer=optimizer.state_dict(),
+            plateaus=[(p.best, p.bad) for p in plateaus], best_loss=best_loss, best_state=best_state,
+            iteration=iteration,
+        ))
+
+    def live() -> list[int]:
+        return [b for b in range(count) if groups[b]["lr"] >= learning_rate * config.min_lr_ratio]
 
     bar = tqdm(total=iterations, initial=start, desc=label, disable=not progress, leave=False)
     iteration = start
-    while iteration < iterations and optimizer.param_groups[0]["lr"] >= learning_rate * config.min_lr_ratio:
-        optimizer.zero_grad(set_to_none=True)
-        terms = objective()
-        loss = sum(terms.values())
-        if not torch.isfinite(loss):
-            raise FloatingPointError(f"{label}: the loss became {loss.item()} at iteration {iteration}")
-        loss.backward()
-        value = loss.item()
-        if value < best_loss:
-            best_loss, best_state = value, _copy_state(module)
-        lr_before = optimizer.param_groups[0]["lr"]
-        # Warm-up: Adam's first steps move every parameter by about lr, whatever its gradient,
-        # which can push the hand out of a grasp that only just holds.
-        optimizer.param_groups[0]["lr"] = lr_before * min(1.0, (iteration + 1) / config.warmup_iterations)
+    while iteration < iterations and (active := live()):
+        optimizer.zero_grad(set_to_none=True)  # modules that have stopped get no gradient: Adam skips them
+        losses = [sum(terms.values()) for terms in objective(active)]
+        for b, loss in zip(active, losses):
+            if not torch.isfinite(loss):
+                which = f" (scene {b})" if count > 1 else ""
+                raise FloatingPointError(f"{label}{which}: the loss became {loss.item()} at iteration {iteration}")
+        sum(losses).backward()
+        values = [loss.item() for loss in losses]
+        lr_before = [group["lr"] for group in groups]
+        for b, value in zip(active, values):
+            if value < best_loss[b]:
+                best_loss[b], best_state[b] = value, _copy_state(modules[b])
+            # Warm-up: Adam's first steps move every parameter by about lr, whatever its gradient,
+            # which can push the hand out of a grasp that only just holds.
+            groups[b]["lr"] = lr_before[b] * min(1.0, (iteration + 1) / config.warmup_iterations)
         optimizer.step()
-        optimizer.param_groups[0]["lr"] = lr_before
-        schedule.step(value)
-        if optimizer.param_groups[0]["lr"] < lr_before:
-            # Back to the best parameters, and forget the momentum that led away from them.
-            module.load_state_dict(best_state)
-            optimizer.state.clear()
+        for b, value in zip(active, values):
+            groups[b]["lr"] = lr_before[b]
+            if plateaus[b].step(value, groups[b]):
+                # Back to the best parameters, and forget the momentum that led away from them.
+                modules[b].load_state_dict(best_state[b])
+                for parameter in modules[b].parameters():
+                    optimizer.state.pop(parameter, None)
         iteration += 1
         bar.update(1)
-        bar.set_postfix(loss=f"{value:.4f}", best=f"{best_loss:.4f}", lr=f"{optimizer.param_groups[0]['lr']:.1e}")
+        bar.set_postfix(loss=f"{sum(values):.4f}", best=f"{sum(best_loss):.4f}", lr=f"{groups[active[0]]['lr']:.1e}",
+                        **({"running": f"{len(active)}/{count}"} if count > 1 else {}))
         if iteration % config.checkpoint_every == 0:
-            store.save(label, module, optimizer, schedule, best_loss, best_state, iteration)
+            save(iteration)
     bar.close()
-    if best_loss == float("inf"):  # no iteration ran: report the loss where the parameters are
+    unrun = [b for b in range(count) if best_loss[b] == float("inf")]
+    if unrun:  # no iteration ran: report the loss where the parameters are
         with torch.no_grad():
-            best_loss = float(sum(objective().values()))
-    module.load_state_dict(best_state)
-    store.save(label, module, optimizer, schedule, best_loss, best_state, iterations)
+            for b, terms in zip(unrun, objective(unrun)):
+                best_loss[b] = float(sum(terms.values()))
+    for module, state in zip(modules, best_state):
+        module.load_state_dict(state)
+    save(iterations)
     return best_loss
+
+
+class _Plateau:
+    """Reduce-on-plateau for one parameter group (``torch.optim.lr_scheduler.ReduceLROnPlateau``'s
+    rule: relative threshold 1e-4, no cool-down)."""
+
+    def __init__(self, patience: int, factor: float):
+        self.patience, self.factor = patience, factor
+        self.best, self.bad = float("inf"), 0
+
+    def step(self, value: float, group: dict) -> bool:
+        """Record ``value``; return whether ``group``'s learning rate was lowered."""
+        if value < self.best * (1.0 - 1e-4):
+            self.best, self.bad = value, 0
+        else:
+            self.bad += 1
+        if self.bad <= self.patience:
+            return False
+        self.bad = 0
+        lowered = group["lr"] * self.factor
+        if group["lr"] - lowered <= 1e-8:
+            return False
+        group["lr"] = lowered
+        return True
 
 
 def _copy_state(module: torch.nn.Module) -> dict[str, torch.Tensor]:
@@ -353,29 +455,27 @@ class _Checkpoint:
     def load(self, stage: str) -> dict | None:
         return self.stages.get(stage)
 
-    def save(self, stage, module, optimizer, schedule, best_loss, best_state, iteration) -> None:
+    def save(self, stage: str, state: dict) -> None:
         if self.path is None:
             return
-        self.stages[stage] = {
-            "module": module.state_dict(),
-            "optimizer": optimizer.state_dict(),
-            "schedule": schedule.state_dict(),
-            "best_loss": best_loss,
-            "best_state": best_state,
-            "iteration": iteration,
-        }
+        self.stages[stage] = state
         self.path.parent.mkdir(parents=True, exist_ok=True)
         partial = self.path.with_name(self.path.name + ".partial")
         torch.save({"fingerprint": self.fingerprint, "stages": self.stages}, partial)
         os.replace(partial, self.path)
 
 
-def _fingerprint(demo: Demonstration, config: OptimizeConfig, seed: int) -> str:
-    """Identity of a run: a checkpoint resumes only the same demonstration and settings."""
+_CHECKPOINT_FORMAT = 2  # bumped when the saved state's layout changes
+
+
+def _fingerprint(demos: Sequence[Demonstration], config: OptimizeConfig, seed: int, backend: Backend) -> str:
+    """Identity of a run: a checkpoint resumes only the same demonstrations and settings."""
     digest = hashlib.sha256()
-    for array in (demo.hand_mask, demo.object_mask, demo.static_mask, demo.contact, demo.intrinsics.K):
-        digest.update(np.ascontiguousarray(array).tobytes())
-    digest.update(repr((demo.fps, config, seed)).encode())
+    for demo in demos:
+        for array in (demo.hand_mask, demo.object_mask, demo.static_mask, demo.contact, demo.intrinsics.K):
+            digest.update(np.ascontiguousarray(array).tobytes())
+        digest.update(repr(demo.fps).encode())
+    digest.update(repr((config, seed, backend.name, _CHECKPOINT_FORMAT)).encode())
     return digest.hexdigest()
 
 

@@ -176,28 +176,33 @@ class PhysicalScene(torch.nn.Module):
         static_pos, static_rot = static_poses(self.static_xy, self.static_yaw, static_size)
         return positive(self.object_size_raw, MIN_OBJECT_SIZE), static_pos, static_rot, static_size
 
-    def forward(self) -> PhysicalRollout:
-        """Simulate the scene: pre-roll, the video, post-roll."""
+    def simulation_inputs(self) -> dict:
+        """Keyword arguments of :func:`warpskill.physics.simulate` for this scene (B = 1):
+        pre-roll, the video, post-roll."""
         object_size, static_pos, static_rot, static_size = self.cuboids()
         spf = self.steps_per_frame
         main_velocity = self.step_basis @ self.control  # (S, 7)
         still = lambda frames: main_velocity.new_zeros(frames * spf, 7)  # noqa: E731
         hand_velocity = torch.cat([still(self.pre_frames), main_velocity, still(self.post_frames)])
-        out = simulate(
-            self.hand_pos0[None],
-            rotation_from_6d(self.hand_rot6)[None],
-            self.grasp0.reshape(1),
-            hand_velocity[None],
-            self.object_pos0[None],
-            rotation_from_6d(self.object_rot6)[None],
-            object_size[None],
-            static_pos[None],
-            static_rot[None],
-            static_size[None],
+        return dict(
+            hand_pos0=self.hand_pos0[None],
+            hand_rot0=rotation_from_6d(self.hand_rot6)[None],
+            grasp0=self.grasp0.reshape(1),
+            hand_vel=hand_velocity[None],
+            object_pos0=self.object_pos0[None],
+            object_rot0=rotation_from_6d(self.object_rot6)[None],
+            object_size=object_size[None],
+            static_pos=static_pos[None],
+            static_rot=static_rot[None],
+            static_size=static_size[None],
             steps_per_frame=spf,
             fps=self.fps,
             config=self.physics,
         )
+
+    def assemble(self, out: Rollout) -> PhysicalRollout:
+        """This scene's :class:`PhysicalRollout` from the rollout (B = 1) of its :meth:`simulation_inputs`."""
+        object_size, static_pos, static_rot, static_size = self.cuboids()
         video = slice(self.pre_frames, self.pre_frames + self.num_frames)
         rollout = Rollout(**{name: value[0, video] for name, value in vars(out).items()})
         speed = out.object_vel[0].square().sum(-1) + out.object_ang_vel[0].square().sum(-1)
@@ -216,3 +221,7 @@ class PhysicalScene(torch.nn.Module):
             camera_elevation=self.camera_elevation,
         )
         return PhysicalRollout(scene, rollout, still_velocity, frame_velocity[:, :6].square().sum(-1))
+
+    def forward(self, simulate=simulate) -> PhysicalRollout:
+        """Simulate the scene (pre-roll, the video, post-roll) with ``simulate`` (default: the Warp engine)."""
+        return self.assemble(simulate(**self.simulation_inputs()))

@@ -1,0 +1,107 @@
+"""Batched engine calls and ``optimize_many``: the same results as one scene at a time."""
+
+import numpy as np
+import pytest
+import torch
+
+from warpskill.batching import render_many, simulate_many
+from warpskill.camera import Intrinsics
+from warpskill.initialize import SceneTrajectories, render_scene
+from warpskill.optimization import OptimizeConfig, _Checkpoint, _minimise, make_physical_scene, optimize, optimize_many
+from warpskill.physics import simulate
+from warpskill.synthetic import make_demonstration
+
+SMALL = OptimizeConfig(iterations=6, init_iterations=6)
+
+
+def _truth_scene(action, seed, dtype=torch.float64):
+    truth = make_demonstration(action, seed=seed, noise="none", image_size=(60, 107), duration=2.0).truth
+    scene = SceneTrajectories(
+        **{k: torch.as_tensor(truth[k], dtype=dtype) for k in SceneTrajectories.__dataclass_fields__})
+    return scene, truth
+
+
+def test_render_many_matches_one_scene_at_a_time_values_and_gradients():
+    intrinsics = Intrinsics.default(60, 107)
+    cases = [_truth_scene("put_onto", 0)[0], _truth_scene("pick_up", 1)[0], _truth_scene("put_behind", 2)[0]]
+    for scene in cases:
+        for name in ("object_pos", "camera_height", "camera_elevation"):
+            getattr(scene, name).requires_grad_(True)
+    weights = [torch.rand(scene.hand_pos.shape[0], 2 + scene.static_pos.shape[0], 60, 107, dtype=torch.float64)
+               for scene in cases]
+
+    batched = render_many(cases, [intrinsics] * 3, 0.5)
+    sum((masks * w).sum() for masks, w in zip(batched, weights)).backward()
+    grads = [{n: getattr(s, n).grad.clone() for n in ("object_pos", "camera_height", "camera_elevation")}
+             for s in cases]
+    for scene, masks, w, grad in zip(cases, batched, weights, grads):
+        for name in grad:
+            getattr(scene, name).grad = None
+        alone = render_scene(scene, intrinsics, 0.5)
+        (alone * w).sum().backward()
+        assert masks.shape == alone.shape
+        np.testing.assert_allclose(masks.detach().numpy(), alone.detach().numpy(), atol=2e-5)
+        for name, value in grad.items():
+            np.testing.assert_allclose(value.numpy(), getattr(scene, name).grad.numpy(), rtol=1e-3, atol=1e-4,
+                                       err_msg=name)
+
+
+def test_simulate_many_pads_shorter_scenes_without_changing_them():
+    config = OptimizeConfig()
+    scenes = []
+    for action, seed, duration in (("pick_up", 0, 2.0), ("pull_left_to_right", 1, 3.0), ("push_right_to_left", 2, 2.5)):
+        demo = make_demonstration(action, seed=seed, noise="none", image_size=(60, 107), duration=duration)
+        fit = SceneTrajectories(
+            **{k: torch.as_tensor(demo.truth[k], dtype=torch.float32) for k in SceneTrajectories.__dataclass_fields__})
+        scenes.append(make_physical_scene(fit, demo.contact, demo.fps, config))
+    inputs = [scene.simulation_inputs() for scene in scenes]
+    batched = simulate_many(inputs)
+    for given, rollout in zip(inputs, batched):
+        alone = simulate(**given)
+        for name, value in vars(alone).items():
+            assert getattr(rollout, name).shape == value.shape, name
+            np.testing.assert_allclose(getattr(rollout, name).detach().numpy(), value.detach().numpy(), atol=1e-6,
+                                       err_msg=name)
+
+
+class _Bowl(torch.nn.Module):
+    """A quadratic bowl with its own minimum: Adam and the plateau schedule have work to do."""
+
+    def __init__(self, centre):
+        super().__init__()
+        self.x = torch.nn.Parameter(torch.zeros(3))
+        self.register_buffer("centre", torch.as_tensor(centre, dtype=torch.float32))
+
+    def loss(self):
+        return {"bowl": (self.x - self.centre).square().sum() + 0.05 * self.x.abs().sum()}
+
+
+def test_minimise_treats_each_module_as_if_it_were_alone():
+    config = OptimizeConfig(plateau_patience=3)
+    centres = ([0.3, -0.2, 0.1], [2.0, 1.0, -1.0])
+    store = _Checkpoint(None, "")
+    together = [_Bowl(c) for c in centres]
+    losses = _minimise(together, lambda live: [together[b].loss() for b in live], iterations=400, learning_rate=0.05,
+                       config=config, progress=False, label="bowls", store=store)
+    for module, loss, centre in zip(together, losses, centres):
+        alone = _Bowl(centre)
+        [expected] = _minimise([alone], lambda live: [alone.loss()], iterations=400, learning_rate=0.05,
+                               config=config, progress=False, label="bowl", store=store)
+        assert loss == expected
+        torch.testing.assert_close(module.x, alone.x, rtol=0, atol=0)
+
+
+def test_optimize_many_matches_optimize_on_each():
+    demos = [make_demonstration(a, seed=0, image_size=(60, 107), duration=2.0) for a in ("pick_up", "put_onto")]
+    many = optimize_many(demos, config=SMALL, progress=False)
+    for demo, recon in zip(demos, many):
+        alone = optimize(demo, config=SMALL, progress=False)
+        assert str(recon.action) == demo.action and recon.num_frames == demo.num_frames
+        assert float(recon.loss) == pytest.approx(float(alone.loss), rel=1e-3)
+        np.testing.assert_allclose(recon.object_pos, alone.object_pos, atol=2e-3)
+        np.testing.assert_allclose(recon.hand_pos, alone.hand_pos, atol=2e-3)
+
+
+def test_optimize_many_needs_a_demonstration():
+    with pytest.raises(ValueError, match="at least one"):
+        optimize_many([])
