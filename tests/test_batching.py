@@ -105,3 +105,19 @@ def test_optimize_many_matches_optimize_on_each():
 def test_optimize_many_needs_a_demonstration():
     with pytest.raises(ValueError, match="at least one"):
         optimize_many([])
+
+
+def test_a_non_finite_loss_names_the_stage_scene_and_iteration():
+    bowls = [_Bowl([0.0, 0.0, 0.0]), _Bowl([1.0, 1.0, 1.0])]
+    calls = []
+
+    def objective(live):
+        calls.append(live)
+        terms = [bowls[b].loss() for b in live]
+        if len(calls) == 3:
+            terms[1]["bowl"] = terms[1]["bowl"] * float("nan")
+        return terms
+
+    with pytest.raises(FloatingPointError, match=r"bowls \(scene 1\): the loss became nan at iteration 2"):
+        _minimise(bowls, objective, iterations=10, learning_rate=0.05, config=OptimizeConfig(), progress=False,
+                  label="bowls", store=_Checkpoint(None, ""))

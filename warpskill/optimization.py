@@ -365,13 +365,13 @@ def _minimise(
     iteration = start
     while iteration < iterations and (active := live()):
         optimizer.zero_grad(set_to_none=True)  # modules that have stopped get no gradient: Adam skips them
-        losses = [sum(terms.values()) for terms in objective(active)]
-        for b, loss in zip(active, losses):
-            if not torch.isfinite(loss):
+        losses = torch.stack([sum(terms.values()) for terms in objective(active)])
+        values = losses.detach().cpu().tolist()  # the iteration's one device-to-host copy
+        for b, value in zip(active, values):
+            if not np.isfinite(value):
                 which = f" (scene {b})" if count > 1 else ""
-                raise FloatingPointError(f"{label}{which}: the loss became {loss.item()} at iteration {iteration}")
-        sum(losses).backward()
-        values = [loss.item() for loss in losses]
+                raise FloatingPointError(f"{label}{which}: the loss became {value} at iteration {iteration}")
+        losses.sum().backward()
         lr_before = [group["lr"] for group in groups]
         for b, value in zip(active, values):
             if value < best_loss[b]:

@@ -1,23 +1,40 @@
-"""Replaying a robot plan in Newton: the MuJoCo replay's scene, simulated by Newton's XPBD solver.
+"""Replaying a robot plan in Newton: the MuJoCo replay's scene and position control, simulated by Newton.
 
 The scene is the one of :mod:`warpskill.robot.replay_mujoco`: the Panda URDF of
 ``example-robot-data`` (its collision meshes, loaded by Newton's URDF importer, which needs
 ``trimesh``), the table and static cuboids as fixed boxes, the manipulated cuboid as a free
-body of :data:`~warpskill.robot.replay_mujoco.OBJECT_MASS` with the same friction. The
-solver is :class:`newton.solvers.SolverXPBD` with Newton's own collision pipeline, so the
-check does not reuse MuJoCo (Newton's ``SolverMuJoCo`` needs ``mujoco-warp`` and would run
-MuJoCo's physics again).
+body of :data:`~warpskill.robot.replay_mujoco.OBJECT_MASS`, every contact with
+:data:`~warpskill.robot.replay_mujoco.FRICTION`. Newton's own collision pipeline makes the
+contacts, so the check does not reuse MuJoCo.
 
-Position control: the robot is a *kinematic* articulation that follows the plan exactly (its
-links are posed by forward kinematics each step and carry their velocities into the
-contacts), so only the cuboid is simulated. This is the ideal of MuJoCo's stiff position
-actuators; it is used because, in Newton 1.8.0 on CPU, XPBD's revolute drives diverge on
-this arm, Featherstone's explicit drives and penalty contacts blow up when the gripper
-squeezes, and XPBD's friction against drive-pushed (dynamic) fingers lets the cuboid slip.
-A force-limited gripper stops at the object: from the plan's grasp on, whenever the cuboid
-is between the fingers, each finger stops :data:`SQUEEZE` inside the cuboid's current
-width along the finger axis (so closing on it, holding it and opening from it never push
-the fingers through it).
+The robot is a dynamic articulation under position control, as in MuJoCo: every arm joint
+has a PD drive towards the plan's joint position (interpolated linearly at every physics
+step) with MuJoCo's gains (:data:`~warpskill.robot.replay_mujoco.ARM_KP`, ``ARM_KV``) and
+torque limits (:data:`ARM_EFFORT`), armature and joint damping, and the links carry
+gravity compensation (a constant upward force ``m g`` at each link's centre of mass). Each
+finger is an independent prismatic joint (the URDF's mimic tag is dropped, as MuJoCo's
+importer ignores it) with a PD drive towards half the planned opening whose force is capped
+at :data:`~warpskill.robot.replay_mujoco.GRIP_FORCE`: a closed command squeezes the cuboid
+and the finger stops at it. The cuboid moves only through contacts with the simulated
+fingers and hand. The drives track the plan the way MuJoCo's do (a lag of about
+``ARM_KV / ARM_KP`` times the joint speed: 0.05 to 0.2 rad at the fastest moves of the
+synthetic plans, Newton's joints within 0.005 rad of MuJoCo's unless the hand jams against
+the cuboid or the table), so the replayed joints follow the plan closely but not exactly.
+
+Solver: :class:`newton.solvers.SolverSteel` (experimental in Newton 1.8): reduced-coordinate
+articulated dynamics whose drives are integrated implicitly in the mass matrix, with
+contacts, friction and joint limits solved by projected Gauss-Seidel; its persistent
+friction patches hold a squeezed cuboid without creep. It runs at MuJoCo's
+:data:`TIMESTEP` on Warp's CPU device (and, untested here, on CUDA). Newton 1.8's other
+options were found to fail on CPU for this scene: ``SolverXPBD``'s revolute drives diverged
+on this arm and its friction let the cuboid slip between drive-pushed fingers,
+``SolverFeatherstone``'s explicit drives with penalty contacts blew up when the gripper
+squeezed, and ``SolverMuJoCo`` needs ``mujoco-warp`` (and would run MuJoCo's physics
+again). Steel at 4 ms steps halves the replay time but doubles the largest deviation of a
+pushed cuboid from MuJoCo's path (12 cm instead of 6 cm on the synthetic pushes), hence
+the 2 ms step. On two CPU cores a step takes about 3 ms (mostly kernel-launch overhead), a
+replay about 1.5 s of wall time per simulated second; the drive targets are uploaded once
+and the host reads the state back only at the sampled frames.
 """
 
 from __future__ import annotations
@@ -29,13 +46,19 @@ import numpy as np
 from warpskill.reconstruction import Reconstruction
 from warpskill.robot.model import ARM_JOINTS, FINGER_JOINTS, environment_boxes, make_scene, panda_urdf
 from warpskill.robot.plan import RobotPlan
-from warpskill.robot.replay_mujoco import FRICTION, OBJECT_MASS
+from warpskill.robot.replay_mujoco import ARM_KP, ARM_KV, FINGER_KP, FRICTION, GRIP_FORCE, OBJECT_MASS
 
-TIMESTEP = 0.004  # [s]
-ITERATIONS = 4  # XPBD iterations per step
+TIMESTEP = 0.002  # [s], as MuJoCo's
+ITERATIONS = 12  # projected Gauss-Seidel iterations per step
 CONTACT_GAP = 0.005  # [m] distance at which contacts are detected
-SQUEEZE = 0.001  # [m] each closed finger stops this far inside the grasped cuboid
-BETWEEN_FINGERS = 0.02  # [m] the cuboid counts as between the fingers up to this far off the pads' centre
+ROW_CAPACITY = 256  # constraint rows of the robot per step (its contacts, joint limits; 128 overflowed once)
+LIMIT_GAP = 0.05  # [rad or m] a joint limit's row is created this close to it
+# The MuJoCo replay's actuator and joint constants.
+ARM_EFFORT = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])  # [N m] torque limits of the arm drives
+ARM_ARMATURE = 0.1  # [kg m^2]
+ARM_DAMPING = 1.0  # [N m s / rad]
+FINGER_KV = 50.0  # [N s / m]
+FINGER_DAMPING = 5.0  # [N s / m]
 # Links standing on (or just above) the table: their contacts with the environment are not simulated
 # (panda_link0 is merged into the world when the fixed joints are collapsed).
 _BASE_LINKS = ("panda_link0", "panda_link1")
@@ -73,32 +96,42 @@ def _label(labels, name: str) -> int:
 
 
 def build_model(plan: RobotPlan, recon: Reconstruction, *, device: str | None = None):
-    """The finalized ``newton.Model`` of the plan's scene and the indices the replay reads.
+    """The finalized ``newton.Model`` of the plan's scene, robot drives set, and the indices the replay reads.
 
     Returns:
-        ``(model, info)`` where ``info`` maps ``arm_dofs``, ``finger_dofs`` (joint_q indices),
-        ``tcp_body``, ``object_body``, ``object_shape``, ``finger_bodies``, ``robot_bodies``.
+        ``(model, info)`` where ``info`` maps ``arm_coords``, ``finger_coords`` (``joint_q`` and
+        ``joint_target_q`` indices), ``tcp_body``, ``object_body``, ``object_shape``,
+        ``finger_bodies``, ``robot_bodies``.
     """
     import newton
 
     builder = newton.ModelBuilder()
     builder.default_shape_cfg = newton.ModelBuilder.ShapeConfig(mu=FRICTION, gap=CONTACT_GAP)
     text = re.sub(r"<visual>.*?</visual>", "", panda_urdf(collision="meshes"), flags=re.S)
+    text = re.sub(r"<mimic[^>]*/>", "", text)  # each finger has its own drive, as in MuJoCo
     builder.add_urdf(text, xform=_transform(plan.base), floating=False, enable_self_collisions=False,
                      collapse_fixed_joints=True)
-    joints = builder.joint_label
-    arm_dofs = [builder.joint_qd_start[_label(joints, name)] for name in ARM_JOINTS]
-    finger_dofs = [builder.joint_qd_start[_label(joints, name)] for name in FINGER_JOINTS]
-    robot_bodies = list(range(builder.body_count))
-    for body in robot_bodies:
-        builder.body_flags[body] = int(newton.BodyFlags.KINEMATIC)
+    joints = [_label(builder.joint_label, name) for name in ARM_JOINTS + FINGER_JOINTS]
+    coords = [builder.joint_q_start[j] for j in joints]
+    dofs = [builder.joint_qd_start[j] for j in joints]
     q0 = np.concatenate([plan.q[0], [plan.gripper[0] / 2] * 2])
-    for dof, value in zip(arm_dofs + finger_dofs, q0):
-        builder.joint_q[dof] = float(value)
+    ke = np.concatenate([ARM_KP, [FINGER_KP] * 2])
+    kd = np.concatenate([ARM_KV, [FINGER_KV] * 2])
+    effort = np.concatenate([ARM_EFFORT, [GRIP_FORCE] * 2])
+    armature = [ARM_ARMATURE] * 7 + [0.0] * 2
+    damping = [ARM_DAMPING] * 7 + [FINGER_DAMPING] * 2
+    for i, (coord, dof) in enumerate(zip(coords, dofs)):
+        builder.joint_q[coord] = builder.joint_target_q[coord] = float(q0[i])
+        builder.joint_target_mode[dof] = int(newton.JointTargetMode.POSITION)
+        builder.joint_target_ke[dof] = float(ke[i])
+        builder.joint_target_kd[dof] = float(kd[i])
+        builder.joint_effort_limit[dof] = float(effort[i])
+        builder.joint_armature[dof] = float(armature[i])
+        builder.joint_damping[dof] = float(damping[i])
+    robot_bodies = list(range(builder.body_count))
     bodies = builder.body_label
     base_bodies = {-1} | {i for i, label in enumerate(bodies) if label.rsplit("/", 1)[-1] in _BASE_LINKS}
     base_shapes = [s for s, b in enumerate(builder.shape_body) if b in base_bodies]
-    finger_bodies = {_label(bodies, n) for n in _FINGER_LINKS}
 
     scene = make_scene(recon, base=plan.base)
     env_cfg = newton.ModelBuilder.ShapeConfig(mu=FRICTION, gap=CONTACT_GAP)
@@ -118,13 +151,13 @@ def build_model(plan: RobotPlan, recon: Reconstruction, *, device: str | None = 
     obj_shape = builder.add_shape_box(obj, hx=hx, hy=hy, hz=hz, cfg=obj_cfg, label="object")
     model = builder.finalize(device=device)
     info = {
-        "arm_dofs": arm_dofs,
-        "finger_dofs": finger_dofs,
+        "arm_coords": coords[:7],
+        "finger_coords": coords[7:],
         "tcp_body": _label(bodies, "panda_link7"),
         "robot_bodies": robot_bodies,
         "object_body": obj,
         "object_shape": obj_shape,
-        "finger_bodies": sorted(finger_bodies),
+        "finger_bodies": sorted(_label(bodies, name) for name in _FINGER_LINKS),
     }
     return model, info
 
@@ -132,7 +165,8 @@ def build_model(plan: RobotPlan, recon: Reconstruction, *, device: str | None = 
 def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, device: str | None = None) -> dict[str, np.ndarray]:
     """Run the plan; sample the TCP, the object and the finger contacts at plan ``times``.
 
-    Returns the arrays of :func:`warpskill.robot.replay_mujoco.simulate`.
+    Returns the arrays of :func:`warpskill.robot.replay_mujoco.simulate` (``q``: the simulated
+    arm joints).
     """
     import newton
     import warp as wp
@@ -140,65 +174,52 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, devic
     wp.config.quiet = True
     with wp.ScopedDevice(device):
         model, info = build_model(plan, recon)
-        robot = info["robot_bodies"]
-        state_0, state_1, robot_state = model.state(), model.state(), model.state()
+        state_0, state_1 = model.state(), model.state()
+        control = model.control()
         newton.eval_fk(model, model.joint_q, model.joint_qd, state_0)
         # The fixed joints are collapsed into panda_link7: the TCP's offset from it comes
-        # from the planned TCP at the first sample.
+        # from the planned TCP at the first sample (where the robot stands at plan.q[0]).
         tcp_offset = np.linalg.inv(_pose(state_0.body_q.numpy()[info["tcp_body"]])) @ plan.tcp[0]
+        # Gravity compensation of the robot links; body_f is never cleared.
+        robot = info["robot_bodies"]
+        wrench = np.zeros((model.body_count, 6), dtype=np.float32)
+        wrench[robot, :3] = -model.body_mass.numpy()[robot, None] * model.gravity.numpy()[0]
+        for state in (state_0, state_1):
+            state.body_f.assign(wrench)
         pipeline = newton.CollisionPipeline(model, reduce_contacts=False)
         contacts = pipeline.contacts()
-        solver = newton.solvers.SolverXPBD(model, iterations=ITERATIONS)
-        dofs = info["arm_dofs"] + info["finger_dofs"]
-        joint_q = model.joint_q.numpy().copy()
-        joint_qd = np.zeros_like(model.joint_qd.numpy())
-        joint_q_wp, joint_qd_wp = wp.array(joint_q), wp.array(joint_qd)
+        solver = newton.solvers.SolverSteel(model, iterations=ITERATIONS, articulation_constraint_max=ROW_CAPACITY,
+                                            enable_joint_limits=True, joint_limit_activation_gap=LIMIT_GAP)
+        # The drive targets of every step, uploaded once: a step copies its row on the device.
+        steps = int(np.ceil(times[-1] / TIMESTEP)) + 1
+        t = np.arange(steps) * TIMESTEP
+        targets = np.tile(model.joint_target_q.numpy(), (steps, 1))
+        for i, coord in enumerate(info["arm_coords"]):
+            targets[:, coord] = np.interp(t, plan.t, plan.q[:, i])
+        targets[:, info["finger_coords"]] = np.interp(t, plan.t, plan.gripper)[:, None] / 2
+        width = targets.shape[1]
+        targets = wp.array(targets.reshape(-1), dtype=wp.float32)
         finger_bodies = set(info["finger_bodies"])
         shape_body = model.shape_body.numpy()
-        size = np.asarray(recon.object_size, dtype=float)
-        q_rate = np.gradient(plan.q, plan.t, axis=0)
-        g_rate = np.gradient(plan.gripper, plan.t)
-        gripping = plan.grasp_kind == "grasp"
-        steps = int(np.ceil(times[-1] / TIMESTEP)) + 1
         out = {"tcp": [], "object_pos": [], "object_rot": [], "held": [], "q": []}
         k = 0
         for step in range(steps):
-            t = step * TIMESTEP
-            body_q, body_qd = state_0.body_q.numpy(), state_0.body_qd.numpy()
-            # The robot is kinematic: its links follow the plan's joint positions exactly.
-            opening = float(np.interp(t, plan.t, plan.gripper))
-            rate = float(np.interp(t, plan.t, g_rate))
-            tcp = _pose(body_q[info["tcp_body"]]) @ tcp_offset
-            if gripping and t >= plan.grasp_time:
-                obj = _pose(body_q[info["object_body"]])
-                local = np.linalg.inv(tcp) @ obj
-                width = float(np.abs(local[1, :3]) @ size)  # the cuboid along the finger axis
-                between = np.all(np.abs(local[[0, 2], 3]) < BETWEEN_FINGERS + np.abs(local[[0, 2], :3]) @ size / 2)
-                if between and opening < width - 2 * SQUEEZE:
-                    opening, rate = width - 2 * SQUEEZE, 0.0
-            joint_q[dofs] = [*(np.interp(t, plan.t, plan.q[:, i]) for i in range(7)), opening / 2, opening / 2]
-            joint_qd[dofs] = [*(np.interp(t, plan.t, q_rate[:, i]) for i in range(7)), rate / 2, rate / 2]
-            joint_q_wp.assign(joint_q)
-            joint_qd_wp.assign(joint_qd)
-            newton.eval_fk(model, joint_q_wp, joint_qd_wp, robot_state)
-            body_q[robot] = robot_state.body_q.numpy()[robot]
-            body_qd[robot] = robot_state.body_qd.numpy()[robot]
-            state_0.body_q.assign(body_q)
-            state_0.body_qd.assign(body_qd)
             pipeline.collide(state_0, contacts)
-            while k < len(times) and times[k] <= t + 1e-9:
-                P = _pose(body_q[info["object_body"]])
-                out["tcp"].append(_pose(body_q[info["tcp_body"]]) @ tcp_offset)
-                out["object_pos"].append(P[:3, 3])
-                out["object_rot"].append(P[:3, :3])
+            if times[k] <= t[step] + 1e-9:
+                body_q, joint_q = state_0.body_q.numpy(), state_0.joint_q.numpy()
                 touched = {int(shape_body[s]) for s in _touching(contacts, info["object_shape"], body_q, shape_body)}
-                out["held"].append(float(finger_bodies <= touched))
-                out["q"].append(joint_q[info["arm_dofs"]].copy())
-                k += 1
-            if k >= len(times):
-                break
-            state_0.clear_forces()
-            solver.step(state_0, state_1, None, contacts, TIMESTEP)
+                P = _pose(body_q[info["object_body"]])
+                while k < len(times) and times[k] <= t[step] + 1e-9:
+                    out["tcp"].append(_pose(body_q[info["tcp_body"]]) @ tcp_offset)
+                    out["object_pos"].append(P[:3, 3])
+                    out["object_rot"].append(P[:3, :3])
+                    out["held"].append(float(finger_bodies <= touched))
+                    out["q"].append(joint_q[info["arm_coords"]].copy())
+                    k += 1
+                if k >= len(times):
+                    break
+            wp.copy(control.joint_target_q, targets, dest_offset=0, src_offset=step * width, count=width)
+            solver.step(state_0, state_1, control, contacts, TIMESTEP)
             state_0, state_1 = state_1, state_0
     return {key: np.asarray(value) for key, value in out.items()}
 
