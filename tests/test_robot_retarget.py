@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -127,3 +129,21 @@ def test_set_down_beside_a_taller_box_leaves_room_for_the_fingers(plans):
 def _object_at(plan, i):
     """The object's centre [m] implied by the planned TCP pose at sample ``i``."""
     return (plan.tcp[i] @ np.linalg.inv(plan.grasp_pose))[:3, 3]
+
+
+def test_a_carried_cuboid_keeps_its_grasp_orientation(plans):
+    from warpskill.robot.retargeting import _rotation_error_deg
+
+    recon, plan = plans[("pick_up", 0)]
+    turned = recon.object_rot.copy()
+    angles = np.linspace(0.0, 1.5, recon.num_frames)  # the reconstruction spins the object in the hand
+    for k, a in enumerate(angles):
+        c, s = np.cos(a), np.sin(a)
+        turned[k] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ recon.object_rot[k]
+    spun = robot.retarget(dataclasses.replace(recon, object_rot=turned))
+    hold = np.flatnonzero(spun.phases() == "hold")
+    assert len(hold) > 10
+    # The gripper carries the cuboid upright along its path: no turn of the TCP while holding.
+    assert max(_rotation_error_deg(spun.tcp[hold[0], :3, :3], spun.tcp[i, :3, :3]) for i in hold) < 3.0
+    np.testing.assert_allclose(spun.tcp[hold[-1], :2, 3], plan.tcp[np.flatnonzero(plan.phases() == "hold")[-1], :2, 3],
+                               atol=0.02)

@@ -6,8 +6,10 @@ The plan, sampled every :data:`DT`:
 2. approach: the demonstrated tip path, shifted so that it ends at the pre-grasp pose
    (8 cm back along the approach), then a straight move onto the grasp pose at the onset;
 3. grasp: the gripper closes (:data:`CLOSE_TIME` s, the arm waits);
-4. hold: the TCP keeps the grasp pose on the moving object (its reconstructed poses; a
-   push follows the object's horizontal displacement at the push height);
+4. hold: the TCP keeps the grasp pose on the moving object: a carried object follows its
+   reconstructed path upright, in its orientation at the grasp (the reconstruction's turns
+   of the object in the hand are fitting noise for these actions, often faster than a
+   wrist can follow); a push follows the object's horizontal displacement at the push height;
 5. release: the gripper opens (:data:`OPEN_TIME` s) and the TCP backs off along the approach.
 
 Each sample is one differential-IK step (placo ``KinematicsSolver``): a TCP frame task,
@@ -52,9 +54,13 @@ COLLISION_MARGIN = 0.005  # [m] smallest planned distance between checked bodies
 SOFT_COLLISION_WEIGHT = 100.0  # weight of the collision constraint when a start must be softened
 TRACK_POSITION = 0.01  # [m] largest TCP position error accepted
 TRACK_ANGLE = 8.0  # [deg] largest TCP orientation error accepted
+LAG_SAMPLES = 10  # the TCP may lag further behind a fast target for this many samples (0.2 s) ...
+LAG_POSITION = 0.025  # [m] ... but never by more than this
+LAG_ANGLE = 15.0  # [deg] ... or this
 CLEARANCE = 0.003  # [m] a carried object is kept this far above its support
 HOOK_PENALTY = 1000.0  # a pull hooks the cuboid only when no grasp is feasible
 SHALLOW_PENALTY = 100.0  # a shallow top grasp is taken only when the deeper ones are infeasible
+OFF_CENTRE_PENALTY = 45.0  # [deg equivalent] edge and side grasps hold a carried cuboid off its centre: it swings
 RELEASE_SHIFTS = (0.01, 0.02, 0.035, 0.05)  # [m] tried moves of the set-down place away from a static box, along the fingers
 SHIFT_PENALTY = 5000.0  # per metre of release shift
 SET_DOWN_HEIGHT = 0.1  # [m] the release pose's reachability is checked coming down from this high above it
@@ -104,7 +110,7 @@ def retarget(recon: Reconstruction, *, placement: Placement | None = None) -> Ro
     T_on = _pose(recon.object_pos[k_on], R_on)
     T_off = None
     if k_off is not None and not pushing:
-        T_off = _pose(recon.object_pos[k_off], recon.object_rot[k_off])
+        T_off = _pose(recon.object_pos[k_off], R_on)
         T_off = _lift_clear(T_off, recon.object_size, _support_height(scene, T_off, recon.object_size))
     statics = []
     for angle, pose in ranked:
@@ -121,6 +127,7 @@ def retarget(recon: Reconstruction, *, placement: Placement | None = None) -> Ro
                 continue
         cost = angle + 10.0 * float(np.abs(q - HOME_Q).sum()) + (HOOK_PENALTY if pose.standoff > 0 else 0.0)
         cost += SHALLOW_PENALTY if pose.name.endswith("_shallow") else 0.0
+        cost += OFF_CENTRE_PENALTY if pose.kind == "grasp" and not pose.name.startswith("top_") else 0.0
         cost += SHIFT_PENALTY * float(np.linalg.norm(shift))
         statics.append((cost, pose, shift))
     feasible = sorted((item for item in statics if len(item) == 3), key=lambda item: item[0])
@@ -194,20 +201,6 @@ def _min_jerk(s: np.ndarray) -> np.ndarray:
     return 10 * s**3 - 15 * s**4 + 6 * s**5
 
 
-def _interp_pose(recon: Reconstruction, tau: float) -> np.ndarray:
-    """Object pose at reconstruction time ``tau`` (linear, rotation re-orthonormalised)."""
-    t = recon.t
-    k = int(np.clip(np.searchsorted(t, tau) - 1, 0, len(t) - 2))
-    w = float(np.clip((tau - t[k]) / (t[k + 1] - t[k]), 0.0, 1.0))
-    pos = (1 - w) * recon.object_pos[k] + w * recon.object_pos[k + 1]
-    U, _, Vt = np.linalg.svd((1 - w) * recon.object_rot[k] + w * recon.object_rot[k + 1])
-    R = U @ Vt
-    if np.linalg.det(R) < 0:
-        U[:, -1] *= -1
-        R = U @ Vt
-    return _pose(pos, R)
-
-
 def _support_height(scene: Scene, T_obj: np.ndarray, size: np.ndarray) -> float:
     """Height [m] of the surface under the object at ``T_obj``: the table or a static box's top."""
     floor = 0.0
@@ -251,7 +244,7 @@ def _targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_
     pregrasp = G_down @ _translate(0, 0, -PREGRASP)
     app_time = min(APPROACH_TIME, 0.5 * t_on) if t_on > 0 else 0.0
     t_pre = t_on - app_time
-    shift = pregrasp[:3, 3] - _interp_hand(recon, t_pre)
+    shift = pregrasp[:3, 3] - _interp_path(recon.hand_pos, recon.t, t_pre)
     opening = 0.0 if pose.kind == "push" else min(MAX_OPENING, pose.width + 0.02)
     close_ramp = max(opening / (2 * FINGER_SPEED), DT)
     times, taus, targets, grips = [], [], [], []
@@ -265,7 +258,7 @@ def _targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_
     def approach_target(tau: float) -> np.ndarray:
         if tau <= t_pre:
             T = G.copy()
-            T[:3, 3] = _interp_hand(recon, tau) + shift
+            T[:3, 3] = _interp_path(recon.hand_pos, recon.t, tau) + shift
             return T
         s = _min_jerk(np.array((tau - t_pre) / max(app_time, 1e-9)))
         T = G.copy()
@@ -273,7 +266,7 @@ def _targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_
         return T
 
     def hold_target(tau: float) -> np.ndarray:
-        T_obj = _interp_pose(recon, tau)
+        T_obj = _pose(_interp_path(recon.object_pos, recon.t, tau), T_on[:3, :3])
         if t_off is not None:
             T_obj[:3, 3] += shift * float(np.clip((tau - t_on) / max(t_off - t_on, 1e-9), 0.0, 1.0))
         if pose.kind == "push":
@@ -315,8 +308,9 @@ def _targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_
     return times, taus, targets, grips, start_time, grasp_time, release_time
 
 
-def _interp_hand(recon: Reconstruction, tau: float) -> np.ndarray:
-    return np.array([np.interp(tau, recon.t, recon.hand_pos[:, i]) for i in range(3)])
+def _interp_path(path: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
+    """The point (3,) of ``path`` (T, 3) sampled at times ``t`` at time ``tau`` (linear)."""
+    return np.array([np.interp(tau, t, path[:, i]) for i in range(3)])
 
 
 def _plan(recon, scene, planner: "_Planner", pose: GraspPose, k_on: int, k_off: int | None, slow: float,
@@ -456,7 +450,7 @@ class _Planner:
         finally:
             self.solver.enable_velocity_limits(True)
         pos, ang = self.error(target)
-        if pos > TRACK_POSITION / 4 or ang > TRACK_ANGLE / 4:
+        if pos > TRACK_POSITION / 2 or ang > TRACK_ANGLE / 2:
             return None, f"out of reach ({100 * pos:.1f} cm, {ang:.0f} deg away{self._why()})"
         if self.min_distance() < COLLISION_MARGIN - 1e-3:
             return None, f"in collision{self._why()}"
@@ -482,6 +476,7 @@ class _Planner:
     def track(self, targets, grips, *, lead_in: int, frame_of):
         """Follow ``targets`` one IK step per sample; joint positions (T, 7) and TCP poses (T, 4, 4)."""
         self.set_q(HOME_Q, grips[0])
+        lagging = 0  # consecutive samples off the target by more than TRACK_POSITION or TRACK_ANGLE
         qs = np.empty((len(targets), 7))
         tcps = np.empty((len(targets), 4, 4))
         for i, (target, grip) in enumerate(zip(targets, grips)):
@@ -499,9 +494,11 @@ class _Planner:
                 raise PlanError(f"frame {k} (t = {tau:.2f} s): the gripper collides{self._why()}")
             if i >= lead_in - 1:
                 pos, ang = self.error(target)
-                if pos > TRACK_POSITION or ang > TRACK_ANGLE:
+                lagging = lagging + 1 if pos > TRACK_POSITION or ang > TRACK_ANGLE else 0
+                start = i == lead_in - 1
+                if lagging > (0 if start else LAG_SAMPLES) or pos > LAG_POSITION or ang > LAG_ANGLE:
                     k, tau = frame_of(i)
-                    what = "the start pose" if i == lead_in - 1 else "the target"
+                    what = "the start pose" if start else "the target"
                     raise PlanError(f"frame {k} (t = {tau:.2f} s): the gripper cannot reach {what}: "
                                     f"{100 * pos:.1f} cm and {ang:.0f} deg away{self._why()}")
         return qs, tcps
