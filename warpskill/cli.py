@@ -176,8 +176,10 @@ def _report(recon, action) -> None:
 
 
 def _demo(args) -> int:
+    from .robot.video import prefer_headless_gl
     from .synthetic import make_demonstration
 
+    prefer_headless_gl()
     demo = make_demonstration(args.action, seed=args.seed)
     args.out.mkdir(parents=True, exist_ok=True)
     demo.save(args.out / "demonstration.npz")
@@ -258,6 +260,9 @@ def _save_plan(plan, path: Path) -> None:
 
 
 def _replay(args) -> int:
+    from .robot.video import prefer_headless_gl
+
+    prefer_headless_gl()
     from .reconstruction import Reconstruction
     from .robot import RobotPlan, replay
     from .robot.video import record

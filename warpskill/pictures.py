@@ -109,7 +109,7 @@ def save_pictures(
     paths = {}
     if frames_video is not None:
         frames = overlay_frames(recon, demo, background=background, render_scale=render_scale)
-        paths["overlay"] = _write_video(out_dir / f"overlay.{frames_video}", frames, float(recon.fps))
+        paths["overlay"] = write_video(out_dir / f"overlay.{frames_video}", frames, float(recon.fps))
     paths["top_view"] = _save_figure(top_view_figure(recon), out_dir / "top_view.png")
     paths["trajectories"] = _save_figure(trajectories_figure(recon, demo), out_dir / "trajectories.png")
     return paths
@@ -270,7 +270,7 @@ def _shade(frame: np.ndarray, x0: int, y0: int, x1: int, y1: int) -> None:
     region[...] = (region.astype(np.uint16) * 2 // 5).astype(np.uint8)
 
 
-def _write_video(path: Path, frames: np.ndarray, fps: float) -> Path:
+def write_video(path: Path, frames: np.ndarray, fps: float) -> Path:
     """Write RGB ``frames`` (N, H, W, 3) as a looping GIF or an MP4 at ``fps`` frames/s."""
     if path.suffix == ".gif":
         iio.imwrite(path, frames, extension=".gif", duration=1000.0 / fps, loop=0)

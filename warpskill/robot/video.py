@@ -2,9 +2,18 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
+
+
+def prefer_headless_gl() -> None:
+    """Without a display, have MuJoCo render offscreen through EGL (unless ``MUJOCO_GL`` says
+    otherwise). Call before MuJoCo is imported; where EGL is missing, :func:`record` falls
+    back to a plot."""
+    if not os.environ.get("DISPLAY"):
+        os.environ.setdefault("MUJOCO_GL", "egl")
 
 
 class _Recorder:
@@ -19,10 +28,12 @@ class _Recorder:
     def start(self, model):
         import mujoco
 
+        model.vis.headlight.ambient[:] = 0.35
+        model.vis.headlight.diffuse[:] = 0.6
         self.renderer = mujoco.Renderer(model, *self.size)
         self.camera = mujoco.MjvCamera()
         self.camera.lookat[:] = self.lookat
-        self.camera.distance, self.camera.azimuth, self.camera.elevation = 1.4, -120.0, -25.0
+        self.camera.distance, self.camera.azimuth, self.camera.elevation = 1.1, -120.0, -30.0
         return self.renderer
 
     def frame(self, model, data) -> None:
@@ -30,19 +41,20 @@ class _Recorder:
         self.frames.append(self.renderer.render().copy())
 
 
+VIDEO_FPS = 25.0  # [1/s] frames of the replay video
+
+
 def record(plan, recon, result, out: Path) -> Path:
-    """Write ``out/replay.mp4`` (MuJoCo offscreen) or, failing that, ``out/replay.png`` (3D plot)."""
+    """Write ``out/replay.mp4``, the whole plan replayed in MuJoCo and rendered offscreen, or,
+    where no renderer works, ``out/replay.png`` (a 3D plot of the replayed paths)."""
+    from warpskill.pictures import write_video
     from warpskill.robot import replay_mujoco
 
     try:
-        recorder = _Recorder(recon.object_pos[0])
-        times = np.arange(plan.start_time, plan.t[-1] + 1e-9, 1.0 / float(recon.fps))
-        replay_mujoco.simulate(plan, recon, times, video=recorder)
-        import imageio.v2 as imageio
-
-        path = out / "replay.mp4"
-        imageio.mimwrite(path, recorder.frames, fps=float(recon.fps))
-        return path
+        centre = np.vstack([recon.object_pos, recon.static_pos]).mean(axis=0) + np.array([0.0, 0.0, 0.05])
+        recorder = _Recorder(centre)
+        replay_mujoco.simulate(plan, recon, np.arange(0.0, plan.t[-1] + 1e-9, 1.0 / VIDEO_FPS), video=recorder)
+        return write_video(out / "replay.mp4", np.stack(recorder.frames), VIDEO_FPS)
     except Exception:  # noqa: BLE001 - no GL context, no ffmpeg: fall back to a plot
         return _plot(result.reconstruction, out / "replay.png")
 
