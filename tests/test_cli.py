@@ -255,3 +255,27 @@ def test_demo_synthesises_reconstructs_and_reports(tmp_path, monkeypatch, capsys
     stdout = capsys.readouterr().out
     assert f"demonstration: {out / 'demonstration.npz'} (put_onto, {demo.num_frames} frames)" in stdout.splitlines()
     assert re.fullmatch(r"put_onto: (success|failure \(.+\))", _evaluation_line(stdout, "put_onto"))
+
+
+def test_optimize_several_demonstrations_side_by_side(demo_file, tmp_path, capsys):
+    other = tmp_path / "push.npz"
+    make_demonstration("push_left_to_right", seed=1, **SMALL_DEMO).save(other)
+    out = tmp_path / "out"
+    status = main(["optimize", str(demo_file), str(other), "-o", str(out), "--iterations", "3", "--quiet",
+                   "--no-pictures"])
+    assert status == 0
+    for name, action in ((demo_file.stem, "pick_up"), ("push", "push_left_to_right")):
+        recon = Reconstruction.load(out / name / "reconstruction.npz")
+        assert str(recon.action) == action
+    printed = capsys.readouterr().out
+    _evaluation_line(printed, "pick_up")
+    _evaluation_line(printed, "push_left_to_right")
+    assert (out / "checkpoint.pt").is_file()
+
+
+def test_optimize_refuses_two_demonstrations_of_one_name(demo_file, tmp_path, capsys):
+    twin = tmp_path / "again" / demo_file.name
+    twin.parent.mkdir()
+    shutil.copy(demo_file, twin)
+    assert main(["optimize", str(demo_file), str(twin), "-o", str(tmp_path / "out")]) == 1
+    assert "different names" in capsys.readouterr().err

@@ -2,6 +2,7 @@
 
     warpskill demo [-o OUT]                       synthesise, reconstruct, picture, evaluate, plan, replay
     warpskill optimize DEMO.npz -o OUT            one demonstration to OUT/reconstruction.npz
+    warpskill optimize A.npz B.npz ... -o OUT     several, side by side: OUT/A/, OUT/B/, ...
     warpskill evaluate RECON.npz [--action A]     the paper's success criteria
     warpskill retarget RECON.npz -o PLAN.npz      Panda plan (placo); also PLAN.csv
     warpskill replay PLAN.npz RECON.npz -o OUT    simulate the plan: OUT/replay.npz + success
@@ -49,9 +50,11 @@ def _parser() -> argparse.ArgumentParser:
     _add_placement_options(demo)
     demo.set_defaults(run=_demo)
 
-    optimise = commands.add_parser("optimize", help="reconstruct one demonstration .npz")
-    optimise.add_argument("demo", type=Path, help="demonstration .npz (FORMATS.md)")
-    optimise.add_argument("-o", "--out", type=Path, required=True, help="output folder")
+    optimise = commands.add_parser("optimize", help="reconstruct demonstration .npz files (several: together)")
+    optimise.add_argument("demos", type=Path, nargs="+", metavar="demo",
+                          help="demonstration .npz (FORMATS.md); several are optimised side by side")
+    optimise.add_argument("-o", "--out", type=Path, required=True,
+                          help="output folder (with several demonstrations: OUT/<file name>/ each)")
     optimise.add_argument("--init-only", action="store_true", help="stop after the physics-free initialisation")
     optimise.add_argument("--no-pictures", action="store_true", help="skip the pictures")
     _add_optimise_options(optimise)
@@ -141,28 +144,32 @@ def _placement(args):
     return Placement(offset=tuple(args.offset), yaw=math.radians(args.yaw))
 
 
-def _reconstruct(demo, out: Path, args, *, init_only: bool = False, pictures: bool = True):
-    """Optimise ``demo`` into ``out`` (resuming its checkpoint), write the npz and pictures."""
-    from .optimization import optimize, resolve_device
+def _reconstruct(demos, folders: list[Path], checkpoint: Path, args, *, init_only: bool = False,
+                 pictures: bool = True):
+    """Optimise ``demos`` together (resuming ``checkpoint``); write each npz and pictures into its folder."""
+    from .optimization import optimize_many, resolve_device
     from .pictures import save_pictures
 
     resolve_device(args.device)
-    out.mkdir(parents=True, exist_ok=True)
-    recon = optimize(
-        demo,
+    checkpoint.parent.mkdir(parents=True, exist_ok=True)
+    reconstructions = optimize_many(
+        demos,
         device=args.device,
         iterations=args.iterations,
         seed=args.seed,
         progress=not args.quiet,
         init_only=init_only,
-        checkpoint=out / "checkpoint.pt",
+        checkpoint=checkpoint,
     )
-    recon.save(out / "reconstruction.npz")
-    print(f"reconstruction: {out / 'reconstruction.npz'}")
-    if pictures:
-        for name, path in save_pictures(recon, demo, out).items():
-            print(f"{name}: {path}")
-    return recon
+    for demo, recon, out in zip(demos, reconstructions, folders):
+        out.mkdir(parents=True, exist_ok=True)
+        recon.save(out / "reconstruction.npz")
+        print(f"reconstruction: {out / 'reconstruction.npz'}")
+        if pictures:
+            for name, path in save_pictures(recon, demo, out).items():
+                print(f"{name}: {path}")
+        _report(recon, demo.action)
+    return reconstructions
 
 
 def _report(recon, action) -> None:
@@ -184,8 +191,7 @@ def _demo(args) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     demo.save(args.out / "demonstration.npz")
     print(f"demonstration: {args.out / 'demonstration.npz'} ({args.action}, {demo.num_frames} frames)")
-    recon = _reconstruct(demo, args.out, args)
-    _report(recon, args.action)
+    [recon] = _reconstruct([demo], [args.out], args.out / "checkpoint.pt", args)
     if args.no_robot:
         return 0
     missing = [name for name in ("placo", "mujoco", "example-robot-data") if not _installed(name)]
@@ -220,9 +226,13 @@ def _installed(distribution: str) -> bool:
 def _optimize(args) -> int:
     from .demonstration import Demonstration
 
-    demo = Demonstration.load(args.demo)
-    recon = _reconstruct(demo, args.out, args, init_only=args.init_only, pictures=not args.no_pictures)
-    _report(recon, demo.action)
+    stems = [path.stem for path in args.demos]
+    if len(set(stems)) < len(stems):
+        raise ValueError("demonstration files must have different names: each gets OUT/<name>/")
+    demos = [Demonstration.load(path) for path in args.demos]
+    folders = [args.out] if len(demos) == 1 else [args.out / stem for stem in stems]
+    _reconstruct(demos, folders, args.out / "checkpoint.pt", args, init_only=args.init_only,
+                 pictures=not args.no_pictures)
     return 0
 
 
