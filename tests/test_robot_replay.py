@@ -97,11 +97,13 @@ def test_cli_demo_runs_the_robot_steps(tmp_path, capsys):
 
 def test_bench_robot_prints_the_table_and_keeps_the_plans(tmp_path, capsys):
     assert main(["bench", "robot", "--seeds", "1", "--actions", "push_left_to_right", "put_onto",
-                 "-o", str(tmp_path)]) == 0
+                 "-o", str(tmp_path), "--video"]) == 0
     printed = capsys.readouterr().out
     rows = {line.split("|")[1].strip(): line for line in printed.splitlines() if line.startswith("| ")}
     # push_left_to_right 0 plans and succeeds; put_onto 0's cuboid is too wide to grasp.
     assert "1/2" in rows["planned"] and "1/2" in rows["replay mujoco"]
     assert "put_onto seed 0: plan: frame 15" in printed and "no feasible grasp" in printed
     assert (tmp_path / "push_left_to_right_0" / "plan.npz").is_file()
+    video = tmp_path / "push_left_to_right_0"
+    assert (video / "replay.mp4").is_file() or (video / "replay.png").is_file()
     assert not (tmp_path / "put_onto_0" / "plan.npz").exists()

@@ -44,7 +44,8 @@ def synthetic_reconstruction(action: str, seed: int, source: str, *, noise: str 
 
 
 def bench_robot(*, seeds: int = 3, source: str = "truth", engines: Sequence[str] = ("mujoco",),
-                actions: Sequence[str] | None = None, out: Path | None = None, device: str = "cpu") -> dict:
+                actions: Sequence[str] | None = None, out: Path | None = None, device: str = "cpu",
+                video: bool = False) -> dict:
     """Plan and replay every action x seed; print the success table per engine and the timings.
 
     Args:
@@ -55,12 +56,17 @@ def bench_robot(*, seeds: int = 3, source: str = "truth", engines: Sequence[str]
         out: folder for the reconstructions and plans (``OUT/<action>_<seed>/``); optimised
             reconstructions found there are reused.
         device: Torch device of the optimiser and Warp device of Newton.
+        video: also write ``OUT/<action>_<seed>/replay.mp4`` of each plan (MuJoCo; a plot
+            without an offscreen renderer).
 
     Returns:
         ``{"rows": {row: [(action, ok)]}, "planning": [s], "replay": {engine: [s]}, "failures": [str]}``.
     """
     from .evaluation import success_table
     from .robot import PlanError, replay, retarget
+    from .robot.video import prefer_headless_gl, record
+
+    prefer_headless_gl()
 
     actions = list(actions or ACTIONS)
     rows: dict[str, list] = {"planned": [], **{f"replay {engine}": [] for engine in engines}}
@@ -87,8 +93,11 @@ def bench_robot(*, seeds: int = 3, source: str = "truth", engines: Sequence[str]
             if folder is not None:
                 plan.save(folder / "plan.npz")
             verdicts = []
+            recorded = None
             for engine in engines:
                 result = replay(plan, recon, engine=engine, device=None if engine == "mujoco" else device)
+                if video and folder is not None and recorded is None:
+                    recorded = record(plan, recon, result, folder)
                 replaying[engine].append(result.replay_time)
                 rows[f"replay {engine}"].append((action, result.success))
                 if not result.success:

@@ -111,6 +111,7 @@ def _parser() -> argparse.ArgumentParser:
     robot.add_argument("--actions", nargs="*", help="a subset of the actions (default: all 9)")
     robot.add_argument("-o", "--out", type=Path, help="keep reconstructions and plans here (reused on a rerun)")
     robot.add_argument("--device", default="cpu")
+    robot.add_argument("--video", action="store_true", help="also write OUT/<case>/replay.mp4 (needs -o)")
     robot.set_defaults(run=_bench_robot)
     real = bench.add_parser("something-else", help="the paper's success table on annotated real videos")
     real.add_argument("--annotations", type=Path, required=True, help="Something-Else boxes (JSON)")
@@ -322,8 +323,10 @@ def _bench_synthetic(args) -> int:
 def _bench_robot(args) -> int:
     from .bench_robot import bench_robot
 
+    if args.video and args.out is None:
+        raise ValueError("--video needs an output folder: -o OUT")
     bench_robot(seeds=args.seeds, source=args.source, engines=args.engines, actions=args.actions, out=args.out,
-                device=args.device)
+                device=args.device, video=args.video)
     return 0
 
 
