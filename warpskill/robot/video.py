@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -10,9 +11,10 @@ import numpy as np
 
 def prefer_headless_gl() -> None:
     """Without a display, have MuJoCo render offscreen through EGL (unless ``MUJOCO_GL`` says
-    otherwise). Call before MuJoCo is imported; where EGL is missing, :func:`record` falls
-    back to a plot."""
-    if not os.environ.get("DISPLAY"):
+    otherwise). MuJoCo picks its GL backend when it is imported, so this does nothing once it
+    is (switching later aborts the process in the renderer); where EGL is missing,
+    :func:`record` falls back to a plot."""
+    if "mujoco" not in sys.modules and not os.environ.get("DISPLAY"):
         os.environ.setdefault("MUJOCO_GL", "egl")
 
 
@@ -42,21 +44,40 @@ class _Recorder:
 
 
 VIDEO_FPS = 25.0  # [1/s] frames of the replay video
+_offscreen = {"failed": False}  # MuJoCo aborts the process on a second try after its GL backend failed once
 
 
 def record(plan, recon, result, out: Path) -> Path:
     """Write ``out/replay.mp4``, the whole plan replayed in MuJoCo and rendered offscreen, or,
     where no renderer works, ``out/replay.png`` (a 3D plot of the replayed paths)."""
     from warpskill.pictures import write_video
+
+    frames = None if _offscreen["failed"] else _render(plan, recon)
+    if frames is None:
+        return _plot(result.reconstruction, out / "replay.png")
+    try:
+        return write_video(out / "replay.mp4", frames, VIDEO_FPS)
+    except OSError:  # no MP4 writer here
+        return _plot(result.reconstruction, out / "replay.png")
+
+
+def _render(plan, recon) -> np.ndarray | None:
+    """(F, H, W, 3) frames of the whole plan at :data:`VIDEO_FPS`, or None without an offscreen renderer."""
     from warpskill.robot import replay_mujoco
 
+    centre = np.vstack([recon.object_pos, recon.static_pos]).mean(axis=0) + np.array([0.0, 0.0, 0.05])
+    recorder = _Recorder(centre)
     try:
-        centre = np.vstack([recon.object_pos, recon.static_pos]).mean(axis=0) + np.array([0.0, 0.0, 0.05])
-        recorder = _Recorder(centre)
         replay_mujoco.simulate(plan, recon, np.arange(0.0, plan.t[-1] + 1e-9, 1.0 / VIDEO_FPS), video=recorder)
-        return write_video(out / "replay.mp4", np.stack(recorder.frames), VIDEO_FPS)
-    except Exception:  # noqa: BLE001 - no GL context, no ffmpeg: fall back to a plot
-        return _plot(result.reconstruction, out / "replay.png")
+    except Exception:  # noqa: BLE001 - MuJoCo raises various errors when no GL context can be made
+        if recorder.renderer is None:
+            _offscreen["failed"] = True
+            return None
+        raise
+    finally:
+        if recorder.renderer is not None:
+            recorder.renderer.close()
+    return np.stack(recorder.frames)
 
 
 def _plot(replayed, path: Path) -> Path:
