@@ -147,3 +147,25 @@ def test_a_carried_cuboid_keeps_its_grasp_orientation(plans):
     assert max(_rotation_error_deg(spun.tcp[hold[0], :3, :3], spun.tcp[i, :3, :3]) for i in hold) < 3.0
     np.testing.assert_allclose(spun.tcp[hold[-1], :2, 3], plan.tcp[np.flatnonzero(plan.phases() == "hold")[-1], :2, 3],
                                atol=0.02)
+
+
+def test_push_poses_face_the_way_the_object_moves():
+    from warpskill.robot.grasps import candidate_poses, rank_poses
+
+    poses = candidate_poses(np.eye(3), np.array([0.06, 0.06, 0.06]), push_height=0.0, pushing=True)
+    from_front = np.array([0.0, -1.0, 0.6]) / np.linalg.norm([0.0, -1.0, 0.6])  # the hand's axis: the arm is in front
+    moving_left = rank_poses(poses, np.eye(3), from_front, push_direction=np.array([-1.0, 0.0, 0.0]))
+    assert moving_left and all(pose.name.startswith("push_+x") for _, pose in moving_left)
+    moving_back = rank_poses(poses, np.eye(3), from_front, push_direction=np.array([0.0, 1.0, 0.0]))
+    assert moving_back and all(pose.name.startswith("push_-y") for _, pose in moving_back)
+
+
+def test_a_thin_object_is_pushed_by_the_fingertips_above_the_table():
+    from warpskill.robot.grasps import FINGERTIP_BELOW_TCP, candidate_poses
+
+    size = np.array([0.20, 0.13, 0.02])  # a plate
+    for pose in candidate_poses(np.eye(3), size, push_height=0.0, pushing=True):
+        tcp, approach = pose.pose[:3, 3], pose.pose[:3, 2]
+        fingertip = tcp + FINGERTIP_BELOW_TCP * approach
+        assert fingertip[2] < size[2] / 2, pose.name  # below the top face: the pads press its side
+        assert fingertip[2] > -size[2] / 2, pose.name  # above the table

@@ -13,7 +13,7 @@ the cuboid's faces named by the world direction they face at the contact onset:
   demonstrated height;
 - ``hook_*`` (pulls of cuboids too wide to grasp): closed fingers reach over the cuboid from
   the demonstrated side, 60 or 75 degrees down, and hook behind the far face at
-  :data:`MIN_PUSH_HEIGHT`; they come down :attr:`GraspPose.standoff` outside that face (so
+  :data:`HOOK_HEIGHT`; they come down :attr:`GraspPose.standoff` outside that face (so
   the straight approach clears the top edge) and move onto it while the gripper would close.
 
 Grasps need the edge length between the fingers to fit the opening (:data:`MAX_OPENING`
@@ -35,7 +35,9 @@ SHALLOW_DEPTH = 0.015  # [m] the same for a shallow top grasp
 EDGE_DEPTH = 0.025  # [m] how far past the top edge (along the approach) the pads' centre goes
 SIDE_DEPTH = 0.03  # [m] how far into a side face the pads' centre goes
 FINGERTIP_BELOW_TCP = 0.012  # [m] the finger pads end this far beyond the TCP along the approach
-MIN_PUSH_HEIGHT = 0.03  # [m] lowest TCP height above the object's bottom for a push
+MIN_PUSH_HEIGHT = 0.02  # [m] lowest TCP height above the object's bottom for a push (the fingertips clear the table)
+PUSH_BELOW_TOP = 0.005  # [m] a push's TCP stays this far below the top face (thin objects: pressed at their top edge)
+HOOK_HEIGHT = 0.03  # [m] TCP height above the object's bottom of a hook
 HOOK_OFFSET = 0.012  # [m] TCP outside the hooked face: the closed fingers' half thickness
 HOOK_CLEARANCE = 0.015  # [m] the approaching fingertips pass this far outside the hooked face's top edge
 
@@ -105,7 +107,7 @@ def candidate_poses(object_rot: np.ndarray, object_size: np.ndarray, *, push_hei
             n[i] = sign
             faces.append((n, j, _axis_name(object_rot @ n)))
     if pushing:
-        lowest, highest = -top + MIN_PUSH_HEIGHT, top - 0.01
+        lowest, highest = -top + MIN_PUSH_HEIGHT, top - PUSH_BELOW_TOP
         h = float(np.clip(0.0 if push_height is None else push_height, lowest, max(lowest, highest)))
         for n, j, face in faces:
             tangent = np.eye(3)[j]
@@ -115,7 +117,7 @@ def candidate_poses(object_rot: np.ndarray, object_size: np.ndarray, *, push_hei
                 poses.append(GraspPose(f"push_{face}_{tilt}", "push", _frame(a, tangent, position), 0.0))
         return poses
     if hooking:
-        h = -top + MIN_PUSH_HEIGHT
+        h = -top + HOOK_HEIGHT
         for n, j, face in faces:
             half_n = size[int(np.argmax(np.abs(n)))] / 2
             for tilt in (60, 75):
@@ -153,21 +155,22 @@ def candidate_poses(object_rot: np.ndarray, object_size: np.ndarray, *, push_hei
 
 
 def rank_poses(poses: list[GraspPose], object_rot: np.ndarray, hand_axis: np.ndarray, *,
-               same_side: bool = False) -> list[tuple[float, GraspPose]]:
+               push_direction: np.ndarray | None = None) -> list[tuple[float, GraspPose]]:
     """Poses sorted by the angle [deg] between their approach and the demonstrated one.
 
     The demonstrated approach is ``-hand_axis`` (the hand axis runs from the tip to the
-    arm). With ``same_side`` (push and pull), only poses whose horizontal approach comes
-    from the demonstrated side (within 60 degrees) are kept.
+    arm). With ``push_direction`` (push and pull: the object's horizontal displacement),
+    only poses whose horizontal approach points along it (within 60 degrees) are kept: a
+    push moves the object the way the pressing fingers face.
     """
     demo = -np.asarray(hand_axis, float) / np.linalg.norm(hand_axis)
-    demo_h = demo[:2] / max(np.linalg.norm(demo[:2]), 1e-9)
     ranked = []
     for pose in poses:
         a = object_rot @ pose.pose[:3, 2]
-        if same_side:
+        if push_direction is not None:
             a_h = a[:2] / max(np.linalg.norm(a[:2]), 1e-9)
-            if np.linalg.norm(a[:2]) < 0.2 or a_h @ demo_h < 0.5:
+            d_h = push_direction[:2] / max(np.linalg.norm(push_direction[:2]), 1e-9)
+            if np.linalg.norm(a[:2]) < 0.2 or a_h @ d_h < 0.5:
                 continue
         ranked.append((math.degrees(math.acos(float(np.clip(a @ demo, -1.0, 1.0)))), pose))
     ranked.sort(key=lambda item: item[0])

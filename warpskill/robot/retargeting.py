@@ -63,6 +63,7 @@ SHALLOW_PENALTY = 100.0  # a shallow top grasp is taken only when the deeper one
 OFF_CENTRE_PENALTY = 45.0  # [deg equivalent] edge and side grasps hold a carried cuboid off its centre: it swings
 RELEASE_SHIFTS = (0.01, 0.02, 0.035, 0.05)  # [m] tried moves of the set-down place away from a static box, along the fingers
 SHIFT_PENALTY = 5000.0  # per metre of release shift
+MIN_PUSH_TRAVEL = 0.01  # [m] a push or pull moving the object less than this keeps the demonstrated approach
 SET_DOWN_HEIGHT = 0.1  # [m] the release pose's reachability is checked coming down from this high above it
 SLOWDOWNS = (1.0, 1.7, 3.0)  # the demonstration is replayed this many times slower when the robot lags
 
@@ -102,10 +103,11 @@ def retarget(recon: Reconstruction, *, placement: Placement | None = None) -> Ro
             f"frame {k_on} (t = {recon.t[k_on]:.2f} s, grasp onset): no feasible grasp: the {size} m cuboid is "
             f"wider than the gripper's {MAX_OPENING - 0.006:.3f} m usable opening across every face"
         )
-    ranked = rank_poses(poses, R_on, axis, same_side=same_side)
+    ranked = rank_poses(poses, R_on, axis, push_direction=_push_direction(recon, k_on, k_off, axis) if same_side
+                        else None)
     if not ranked:
-        raise PlanError(f"frame {k_on} (t = {recon.t[k_on]:.2f} s, grasp onset): no grasp pose approaches "
-                        "from the demonstrated side")
+        raise PlanError(f"frame {k_on} (t = {recon.t[k_on]:.2f} s, grasp onset): no grasp pose faces "
+                        "the demonstrated push or pull")
     planner = _Planner(scene)
     T_on = _pose(recon.object_pos[k_on], R_on)
     T_off = None
@@ -147,6 +149,20 @@ def retarget(recon: Reconstruction, *, placement: Placement | None = None) -> Ro
             return plan
         failures.append(f"{pose.name}: {last}")
     raise PlanError("; ".join(failures))
+
+
+def _push_direction(recon: Reconstruction, k_on: int, k_off: int | None, hand_axis: np.ndarray) -> np.ndarray:
+    """(3,) the way the fingers must face to move the object as demonstrated (push and pull).
+
+    A push presses the object along its displacement, a pull (hooking the far face) against
+    it, from the hand's side. Without a clear displacement (< :data:`MIN_PUSH_TRAVEL`), the
+    demonstrated approach ``-hand_axis`` decides.
+    """
+    displacement = recon.object_pos[k_off if k_off is not None else -1] - recon.object_pos[k_on]
+    displacement[2] = 0.0
+    if np.linalg.norm(displacement) < MIN_PUSH_TRAVEL:
+        return -np.asarray(hand_axis, float)
+    return displacement if str(recon.action).startswith("push_") else -displacement
 
 
 def _release_shift(planner: "_Planner", scene: Scene, T_off: np.ndarray, pose: GraspPose):
