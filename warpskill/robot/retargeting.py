@@ -4,7 +4,8 @@ The plan, sampled every :data:`DT`:
 
 1. lead-in (:data:`LEAD_IN` s): from the home configuration to the first pose;
 2. approach: the demonstrated tip path, shifted so that it ends at the pre-grasp pose
-   (8 cm back along the approach), then a straight move onto the grasp pose at the onset;
+   (8 cm back along the approach), then a straight move onto the grasp pose at the onset
+   (where the robot cannot follow the demonstrated path, it waits at the pre-grasp instead);
 3. grasp: the gripper closes (:data:`CLOSE_TIME` s, the arm waits);
 4. hold: the TCP keeps the grasp pose on the moving object: a carried object follows its
    reconstructed path upright, in its orientation at the grasp (the reconstruction's turns
@@ -139,11 +140,12 @@ def retarget(recon: Reconstruction, *, placement: Placement | None = None) -> Ro
                         f"({reasons})")
     failures = []
     for _, pose, shift in feasible[:4]:
-        for slow in SLOWDOWNS:
+        # The demonstrated approach first; where the robot cannot follow it, a wait at the pre-grasp.
+        for follow_hand, slow in [(True, slow) for slow in SLOWDOWNS] + [(False, slow) for slow in SLOWDOWNS]:
             try:
-                plan = _plan(recon, scene, planner, pose, k_on, k_off, slow, shift)
+                plan = _plan(recon, scene, planner, pose, k_on, k_off, slow, shift, follow_hand=follow_hand)
             except PlanError as error:
-                last = error
+                last = error if follow_hand else last  # report the demonstrated approach's failure
                 continue
             plan.planning_time = time.perf_counter() - started
             return plan
@@ -240,11 +242,13 @@ def _lift_clear(T_obj: np.ndarray, size: np.ndarray, floor: float) -> np.ndarray
 
 
 def _targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_off: int | None, slow: float,
-             shift: np.ndarray):
+             release_shift: np.ndarray, follow_hand: bool = True):
     """Plan samples: times, reconstruction times, TCP targets (T, 4, 4), gripper openings, events.
 
     The demonstration is played ``slow`` times slower than recorded; the carried object
-    drifts linearly by ``shift`` (3,) [m] from the grasp to the release.
+    drifts linearly by ``release_shift`` (3,) [m] from the grasp to the release. Without
+    ``follow_hand`` the gripper waits at the pre-grasp pose instead of following the
+    demonstrated hand path there.
     """
     step = DT / slow
     t_on = float(recon.t[k_on])
@@ -260,7 +264,7 @@ def _targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_
     pregrasp = G_down @ _translate(0, 0, -PREGRASP)
     app_time = min(APPROACH_TIME, 0.5 * t_on) if t_on > 0 else 0.0
     t_pre = t_on - app_time
-    shift = pregrasp[:3, 3] - _interp_path(recon.hand_pos, recon.t, t_pre)
+    path_shift = pregrasp[:3, 3] - _interp_path(recon.hand_pos, recon.t, t_pre)  # the hand path ends at the pre-grasp
     opening = 0.0 if pose.kind == "push" else min(MAX_OPENING, pose.width + 0.02)
     close_ramp = max(opening / (2 * FINGER_SPEED), DT)
     times, taus, targets, grips = [], [], [], []
@@ -274,7 +278,7 @@ def _targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_
     def approach_target(tau: float) -> np.ndarray:
         if tau <= t_pre:
             T = G.copy()
-            T[:3, 3] = _interp_path(recon.hand_pos, recon.t, tau) + shift
+            T[:3, 3] = _interp_path(recon.hand_pos, recon.t, tau) + path_shift if follow_hand else pregrasp[:3, 3]
             return T
         s = _min_jerk(np.array((tau - t_pre) / max(app_time, 1e-9)))
         T = G.copy()
@@ -284,7 +288,7 @@ def _targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_
     def hold_target(tau: float) -> np.ndarray:
         T_obj = _pose(_interp_path(recon.object_pos, recon.t, tau), T_on[:3, :3])
         if t_off is not None:
-            T_obj[:3, 3] += shift * float(np.clip((tau - t_on) / max(t_off - t_on, 1e-9), 0.0, 1.0))
+            T_obj[:3, 3] += release_shift * float(np.clip((tau - t_on) / max(t_off - t_on, 1e-9), 0.0, 1.0))
         if pose.kind == "push":
             T = G.copy()
             T[:2, 3] += T_obj[:2, 3] - T_on[:2, 3]
@@ -330,10 +334,10 @@ def _interp_path(path: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
 
 
 def _plan(recon, scene, planner: "_Planner", pose: GraspPose, k_on: int, k_off: int | None, slow: float,
-          shift: np.ndarray) -> RobotPlan:
+          release_shift: np.ndarray, *, follow_hand: bool = True) -> RobotPlan:
     """Run the differential IK along the targets of ``pose``; raise PlanError on a tracking failure."""
     times, taus, targets, grips, start_time, grasp_time, release_time = _targets(
-        recon, scene, pose, k_on, k_off, slow, shift)
+        recon, scene, pose, k_on, k_off, slow, release_shift, follow_hand)
     fps = float(recon.fps)
     qs, tcps = planner.track(targets, grips, lead_in=int(round(LEAD_IN / DT)),
                              frame_of=lambda i: (int(round(taus[i] * fps)), taus[i]))
