@@ -13,12 +13,8 @@ pytestmark = pytest.mark.filterwarnings("error:.*may corrupt gradient computatio
 
 
 @pytest.fixture(autouse=True)
-def _verify_array_access():
-    wp.init()
-    previous = wp.config.verify_autograd_array_access
-    wp.config.verify_autograd_array_access = True
-    yield
-    wp.config.verify_autograd_array_access = previous
+def _verify_array_access(verify_array_access):
+    """Every test here runs with Warp's gradient-corrupting access checks on."""
 
 
 # ---------------------------------------------------------------------------------------------

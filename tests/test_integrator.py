@@ -4,7 +4,6 @@ spline basis that feeds it."""
 import numpy as np
 import pytest
 import torch
-import warp as wp
 
 from warpskill.physics import simulate
 from warpskill.spline import natural_cubic_basis, step_velocities
@@ -24,12 +23,8 @@ pytestmark = [
 
 
 @pytest.fixture(autouse=True)
-def _verify_array_access():
-    wp.init()
-    previous = wp.config.verify_autograd_array_access
-    wp.config.verify_autograd_array_access = True
-    yield
-    wp.config.verify_autograd_array_access = previous
+def _verify_array_access(verify_array_access):
+    """Every test here runs with Warp's gradient-corrupting access checks on."""
 
 
 def _yaw(angle: float) -> np.ndarray:

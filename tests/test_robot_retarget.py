@@ -12,7 +12,7 @@ from warpskill.reconstruction import Reconstruction  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
 
 robot = pytest.importorskip("warpskill.robot")
-from warpskill.robot.model import ARM_JOINTS, RobotModelError, make_scene, panda_description_dir, panda_urdf  # noqa: E402
+from warpskill.robot.model import RobotModelError, make_scene, panda_description_dir, panda_urdf  # noqa: E402
 
 try:
     panda_description_dir()

@@ -21,6 +21,7 @@ import torch
 
 from .camera import Intrinsics, camera_rotation
 from .initialize import SceneTrajectories
+from .physics import Rollout
 from .physics import simulate as warp_simulate
 from .render import render_silhouettes
 
@@ -105,8 +106,6 @@ def simulate_many(inputs: Sequence[dict], simulate: Callable = warp_simulate):
     """Roll out each scene's :meth:`~warpskill.physical_scene.PhysicalScene.simulation_inputs`,
     one engine call per group; returns each scene's :class:`~warpskill.physics.Rollout` (B = 1)
     over its own frames."""
-    from .physics import Rollout
-
     keys = [(x["steps_per_frame"], x["fps"], x["static_pos"].shape[1], x["config"]) for x in inputs]
     out: list[Rollout | None] = [None] * len(inputs)
     for members in groups(keys):

@@ -129,14 +129,13 @@ def make_problem(
     )
 
 
-def iteration(module: torch.nn.Module, objective: Callable[[], dict[str, torch.Tensor]], *,
-              modules: Sequence[torch.nn.Module] = ()) -> Callable[[], float]:
-    """One optimisation iteration's work: the loss terms' sum and its backward pass
-    (gradients of ``module``, or of all ``modules``, cleared first)."""
+def iteration(objective: Callable[[], dict[str, torch.Tensor]], *modules: torch.nn.Module) -> Callable[[], float]:
+    """One optimisation iteration's work: the loss terms' sum and its backward pass (the
+    gradients of ``modules`` cleared first)."""
 
     def run() -> float:
-        for each in modules or [module]:
-            each.zero_grad(set_to_none=True)
+        for module in modules:
+            module.zero_grad(set_to_none=True)
         loss = sum(objective().values())
         loss.backward()
         return loss.item()
@@ -188,8 +187,8 @@ def bench_speed(
         config = problem.config
         for name in engines:
             engine = backend(name)
-            stage_a = median_seconds(iteration(problem.initial, lambda: problem.stage_a(engine)), repeats, device)
-            stage_b = median_seconds(iteration(problem.physical, lambda: problem.stage_b(engine)), repeats, device)
+            stage_a = median_seconds(iteration(lambda: problem.stage_a(engine), problem.initial), repeats, device)
+            stage_b = median_seconds(iteration(lambda: problem.stage_b(engine), problem.physical), repeats, device)
             estimate = len(OBJECT_DEPTH_HYPOTHESES) * config.init_iterations * stage_a + config.iterations * stage_b
             measured = None
             if measure_full:
@@ -261,7 +260,7 @@ def bench_scaling(
             row = dict(case=label, device=str(device), frames=problem.demo.num_frames, image=f"{h}x{w}", batch=1)
             for name in engines:
                 engine = backend(name)
-                row[name] = median_seconds(iteration(problem.physical, lambda: problem.stage_b(engine)), repeats,
+                row[name] = median_seconds(iteration(lambda: problem.stage_b(engine), problem.physical), repeats,
                                            device)
             rows.append(row)
         problem = make_problem(device=device)
@@ -272,7 +271,7 @@ def bench_scaling(
             for name in engines:
                 engine = backend(name)
                 row[name] = median_seconds(
-                    iteration(scenes[0], lambda: problem.stage_b(engine, scenes), modules=scenes), repeats, device)
+                    iteration(lambda: problem.stage_b(engine, scenes), *scenes), repeats, device)
             rows.append(row)
     print(f"stage (b) iteration [ms] (median of {repeats})")
     print(f"{'case':<12} {'device':<7} {'frames':>6} {'image':>8} {'B':>3} " + " ".join(f"{n:>10}" for n in engines)

@@ -59,15 +59,13 @@ class Replay:
         save_npz_atomic(path, arrays)
 
 
-def replay(plan: RobotPlan, recon: Reconstruction, engine: str = "mujoco", *, video=None,
-           device: str | None = None) -> Replay:
+def replay(plan: RobotPlan, recon: Reconstruction, engine: str = "mujoco", *, device: str | None = None) -> Replay:
     """Simulate ``plan`` in the scene of ``recon`` and judge the replayed object motion.
 
     Args:
         plan: from :func:`warpskill.robot.retarget` (or :meth:`RobotPlan.load`).
         recon: the reconstruction the plan was made for (cuboid sizes, statics, action).
         engine: ``"mujoco"`` (default) or ``"newton"``.
-        video: optional recorder with ``start(model)`` / ``frame(model, data)`` (MuJoCo).
         device: Warp device for Newton (``"cpu"``, ``"cuda"``; default: Warp's default).
 
     Raises:
@@ -81,7 +79,7 @@ def replay(plan: RobotPlan, recon: Reconstruction, engine: str = "mujoco", *, vi
     if engine == "mujoco":
         from warpskill.robot import replay_mujoco as backend
 
-        sim = backend.simulate(plan, recon, times, video=video)
+        sim = backend.simulate(plan, recon, times)
     else:
         from warpskill.robot import replay_newton as backend
 

@@ -115,41 +115,42 @@ def retarget(recon: Reconstruction, *, placement: Placement | None = None) -> Ro
     if k_off is not None and not pushing:
         T_off = _pose(recon.object_pos[k_off], R_on)
         T_off = _lift_clear(T_off, recon.object_size, _support_height(scene, T_off, recon.object_size))
-    statics = []
+    feasible, rejected = [], []  # (cost, pose, release shift), (pose name, why)
     for angle, pose in ranked:
         q, why = planner.static_ik(T_on @ pose.pose)
         q_pre, why_pre = planner.static_ik(T_on @ pose.pose @ _translate(0, 0, -PREGRASP), q)
         if q is None or q_pre is None:
-            statics.append((pose.name, why or why_pre))
+            rejected.append((pose.name, why or why_pre))
             continue
         shift = np.zeros(3)
         if T_off is not None and pose.kind == "grasp":
             shift, why_off = _release_shift(planner, scene, T_off, pose)
             if shift is None:
-                statics.append((pose.name, f"at the release (frame {k_off}): {why_off}"))
+                rejected.append((pose.name, f"at the release (frame {k_off}): {why_off}"))
                 continue
         cost = angle + 10.0 * float(np.abs(q - HOME_Q).sum()) + (HOOK_PENALTY if pose.standoff > 0 else 0.0)
         cost += SHALLOW_PENALTY if pose.name.endswith("_shallow") else 0.0
         cost += OFF_CENTRE_PENALTY if pose.kind == "grasp" and not pose.name.startswith("top_") else 0.0
         cost += SHIFT_PENALTY * float(np.linalg.norm(shift))
-        statics.append((cost, pose, shift))
-    feasible = sorted((item for item in statics if len(item) == 3), key=lambda item: item[0])
+        feasible.append((cost, pose, shift))
     if not feasible:
-        reasons = "; ".join(f"{name}: {why}" for name, why in statics[:6])
+        reasons = "; ".join(f"{name}: {why}" for name, why in rejected[:6])
         raise PlanError(f"frame {k_on} (t = {recon.t[k_on]:.2f} s, grasp onset): no feasible grasp pose "
                         f"({reasons})")
+    feasible.sort(key=lambda item: item[0])
     failures = []
     for _, pose, shift in feasible[:4]:
         # The demonstrated approach first; where the robot cannot follow it, a wait at the pre-grasp.
+        reported = None  # the demonstrated approach's last failure
         for follow_hand, slow in [(True, slow) for slow in SLOWDOWNS] + [(False, slow) for slow in SLOWDOWNS]:
             try:
                 plan = _plan(recon, scene, planner, pose, k_on, k_off, slow, shift, follow_hand=follow_hand)
             except PlanError as error:
-                last = error if follow_hand else last  # report the demonstrated approach's failure
+                reported = error if follow_hand else reported
                 continue
             plan.planning_time = time.perf_counter() - started
             return plan
-        failures.append(f"{pose.name}: {last}")
+        failures.append(f"{pose.name}: {reported}")
     raise PlanError("; ".join(failures))
 
 
