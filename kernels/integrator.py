@@ -25,8 +25,8 @@ from typing import Any
 
 import warp as wp
 
-from .contact import contact_impulses_func, tip_distance
-from .geometry import exp_so3, orthonormalize
+from warpskill.kernels.contact import contact_impulses_func, tip_distance
+from warpskill.kernels.geometry import exp_so3, orthonormalize
 
 
 @wp.func
@@ -258,7 +258,7 @@ def rollout(
 ):
     """Integrate B scenes over S = ``hand_vel.shape[1]`` steps of ``dt`` [s] into ``steps`` (B, S+1).
 
-    ``config`` holds the physics constants (``warpskill.physics.PhysicsConfig``); arrays are
+    ``config`` holds the physics constants (``warpskill.engine.simulation.PhysicsConfig``); arrays are
     (B,) (statics (B, K), ``hand_vel`` (B, S, 7) = v_h, w_h, grasp rate).
     """
     num_scenes, num_steps = hand_vel.shape[0], hand_vel.shape[1]

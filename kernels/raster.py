@@ -19,7 +19,7 @@ p = (j + 0.5, i + 0.5):
 reduces, per hull edge e, the moments (sum g, sum g (p - a_e)) over the pixels whose
 distance edge is e (a_e the edge's first vertex), with one atomic add per (tile, primitive,
 edge). Depth order carries no gradient. All kernels are forward-only; the Torch bridge
-(``warpskill.render``) turns moments into vertex gradients.
+(``warpskill.engine.rendering``) turns moments into vertex gradients.
 """
 
 from __future__ import annotations

@@ -4,11 +4,15 @@ import numpy as np
 import pytest
 import torch
 
-from warpskill.batching import render_many, simulate_many
-from warpskill.camera import Intrinsics
-from warpskill.initialize import SceneTrajectories, render_scene
-from warpskill.optimization import OptimizeConfig, _Checkpoint, _minimise, make_physical_scene, optimize, optimize_many
-from warpskill.physics import simulate
+from warpskill.contract.camera import Intrinsics
+from warpskill.engine.simulation import simulate
+from warpskill.optimizer.batching import render_many, simulate_many
+from warpskill.optimizer.checkpoint import Checkpoint
+from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.loop import minimise
+from warpskill.optimizer.pipeline import optimize, optimize_many
+from warpskill.optimizer.scene import SceneTrajectories, render_scene
+from warpskill.optimizer.stage_b import make_physical_scene
 from warpskill.synthetic import make_demonstration
 
 SMALL = OptimizeConfig(iterations=6, init_iterations=6)
@@ -79,13 +83,13 @@ class _Bowl(torch.nn.Module):
 def test_minimise_treats_each_module_as_if_it_were_alone():
     config = OptimizeConfig(plateau_patience=3)
     centres = ([0.3, -0.2, 0.1], [2.0, 1.0, -1.0])
-    store = _Checkpoint(None, "")
+    store = Checkpoint(None, "")
     together = [_Bowl(c) for c in centres]
-    losses = _minimise(together, lambda live: [together[b].loss() for b in live], iterations=400, learning_rate=0.05,
+    losses = minimise(together, lambda live: [together[b].loss() for b in live], iterations=400, learning_rate=0.05,
                        config=config, progress=False, label="bowls", store=store)
     for module, loss, centre in zip(together, losses, centres):
         alone = _Bowl(centre)
-        [expected] = _minimise([alone], lambda live: [alone.loss()], iterations=400, learning_rate=0.05,
+        [expected] = minimise([alone], lambda live: [alone.loss()], iterations=400, learning_rate=0.05,
                                config=config, progress=False, label="bowl", store=store)
         assert loss == expected
         torch.testing.assert_close(module.x, alone.x, rtol=0, atol=0)
@@ -119,5 +123,5 @@ def test_a_non_finite_loss_names_the_stage_scene_and_iteration():
         return terms
 
     with pytest.raises(FloatingPointError, match=r"bowls \(scene 1\): the loss became nan at iteration 2"):
-        _minimise(bowls, objective, iterations=10, learning_rate=0.05, config=OptimizeConfig(), progress=False,
-                  label="bowls", store=_Checkpoint(None, ""))
+        minimise(bowls, objective, iterations=10, learning_rate=0.05, config=OptimizeConfig(), progress=False,
+                  label="bowls", store=Checkpoint(None, ""))

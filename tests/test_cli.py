@@ -12,11 +12,11 @@ import pytest
 
 import warpskill.synthetic
 from warpskill.cli import main
-from warpskill.demonstration import Demonstration
-from warpskill.reconstruction import FIELD_SHAPES, Reconstruction
+from warpskill.contract.demonstration import Demonstration
+from warpskill.contract.reconstruction import FIELD_SHAPES, Reconstruction
 from warpskill.synthetic import make_demonstration
 
-optimize_module = importlib.import_module("warpskill.optimization")
+optimize_module = importlib.import_module("warpskill.optimizer.pipeline")
 
 PICTURES = ("overlay.gif", "top_view.png", "trajectories.png")
 SMALL_DEMO = dict(image_size=(60, 107), duration=2.0)

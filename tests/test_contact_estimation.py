@@ -3,10 +3,16 @@
 import numpy as np
 import pytest
 
-from warpskill.contact_estimation import (
+from warpskill.data.contact import (
     IN_CONTACT as C,
+)
+from warpskill.data.contact import (
     NO_CONTACT as N,
+)
+from warpskill.data.contact import (
     UNKNOWN as U,
+)
+from warpskill.data.contact import (
     advance_release,
     detections_from_masks,
     estimate_contact,

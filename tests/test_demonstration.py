@@ -1,12 +1,12 @@
-"""Tests for warpskill.demonstration: the demonstration file of FORMATS.md."""
+"""Tests for warpskill.contract.demonstration: the demonstration file of FORMATS.md."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from warpskill.camera import Intrinsics
-from warpskill.demonstration import Demonstration, DemonstrationError
+from warpskill.contract.camera import Intrinsics
+from warpskill.contract.demonstration import Demonstration, DemonstrationError
 
 N, H, W = 4, 6, 8
 

@@ -1,4 +1,4 @@
-"""The dopri5 baseline (``warpskill.reference.dopri5``: adaptive dopri5 with grasp/release
+"""The dopri5 baseline (``warpskill.engine.reference.dopri5``: adaptive dopri5 with grasp/release
 events, hard switch) against the analytic free fall, against Warp's ``simulate``
 (semi-implicit Euler, dt = 1/240 s, sigmoid switch), and its gradients against finite
 differences.
@@ -18,10 +18,10 @@ import math
 import pytest
 import torch
 
-from warpskill.physics import PhysicsConfig, simulate
+from warpskill.engine.simulation import PhysicsConfig, simulate
 
 pytest.importorskip("torchdiffeq")  # the optional extra "baselines"
-from warpskill.reference import simulate_dopri5  # noqa: E402
+from warpskill.engine.reference.dopri5 import simulate_dopri5
 from warpskill.synthetic import scripted_inputs, scripted_scene
 
 DURATION = 2.0  # [s]
@@ -180,8 +180,8 @@ def test_gradients_match_finite_differences_across_the_release(put_onto_rollouts
 
 
 def test_bench_engine_swaps_the_rollout_only():
-    from warpskill.bench_speed import backend
-    from warpskill.render import render_silhouettes
+    from warpskill.bench.speed import backend
+    from warpskill.engine.rendering import render_silhouettes
 
     engine = backend("dopri5")
     assert engine.simulate is simulate_dopri5 and engine.render is render_silhouettes

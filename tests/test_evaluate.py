@@ -13,9 +13,9 @@ import math
 import numpy as np
 import pytest
 
-from warpskill.actions import ACTIONS
-from warpskill.evaluation import Evaluation, evaluate, success_table
-from warpskill.reconstruction import Reconstruction
+from warpskill.contract.actions import ACTIONS
+from warpskill.contract.evaluation import Evaluation, evaluate, success_table
+from warpskill.contract.reconstruction import Reconstruction
 
 N = 8
 STATIC_CENTRE = (0.0, 0.5, 0.05)

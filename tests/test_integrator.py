@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import torch
 
-from warpskill.physics import simulate
-from warpskill.spline import natural_cubic_basis, step_velocities
+from warpskill.engine.simulation import simulate
+from warpskill.optimizer.spline import natural_cubic_basis, step_velocities
 
 FPS, SPF = 30.0, 8  # dt = 1/240 s as in the default configuration, 1.2 s rollouts
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from warpskill.losses import diou_loss
+from warpskill.optimizer.losses import diou_loss
 
 
 def _numpy_diou(a: np.ndarray, b: np.ndarray) -> float:

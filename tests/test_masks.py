@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from warpskill.masks import clean_masks, drop_specks, largest_component, subsample
+from warpskill.data.masks import clean_masks, drop_specks, largest_component, subsample
 
 
 def _frames():

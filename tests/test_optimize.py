@@ -8,14 +8,15 @@ import numpy as np
 import pytest
 import torch
 
-from warpskill.distances import box_signed_distance
-from warpskill.initialize import OBJECT_DEPTH_HYPOTHESES
-from warpskill.optimization import OptimizeConfig, optimize
-from warpskill.reconstruction import FIELD_SHAPES, Reconstruction
+from warpskill.contract.reconstruction import FIELD_SHAPES, Reconstruction
+from warpskill.engine.distances import box_signed_distance
+from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.pipeline import optimize
+from warpskill.optimizer.stage_a import OBJECT_DEPTH_HYPOTHESES
 from warpskill.synthetic import make_demonstration
 
 # The module itself, for spying on its objectives (``warpskill.optimize`` may name the function).
-optimize_module = importlib.import_module("warpskill.optimization")
+optimize_module = importlib.import_module("warpskill.optimizer.pipeline")
 
 SMALL = OptimizeConfig(iterations=8, init_iterations=8)
 INIT_CALLS = len(OBJECT_DEPTH_HYPOTHESES) * SMALL.init_iterations  # stage (a) runs once per hypothesis
@@ -226,7 +227,7 @@ def test_zero_physics_iterations_return_the_initialised_scene(pick_up):
 def test_package_functions_are_not_shadowed_by_their_modules():
     # A fresh interpreter: in this one, whether the name is the module depends on import order.
     code = (
-        "import warpskill, warpskill.evaluation, warpskill.optimization\n"
+        "import warpskill, warpskill.contract.evaluation, warpskill.optimizer.pipeline\n"
         "print(callable(warpskill.evaluate), callable(warpskill.optimize))\n"
     )
     result = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)

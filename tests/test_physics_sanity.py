@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from warpskill.physics import PhysicsConfig, simulate, substeps_per_frame
+from warpskill.engine.simulation import PhysicsConfig, simulate, substeps_per_frame
 
 FPS = 12.0
 SPF = substeps_per_frame(FPS)

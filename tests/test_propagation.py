@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from warpskill.demonstration import DemonstrationError
-from warpskill.propagation import propagate_masks, read_polygons
+from warpskill.contract.demonstration import DemonstrationError
+from warpskill.data.propagation import propagate_masks, read_polygons
 
 MEAN_IOU = 0.9  # measured (seeds 0-2, refined): hand 0.99, object 0.94-0.96; 24 frames from the middle one
 

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import torch
 import warp as wp
-
-from warpskill.camera import Intrinsics
 from warpskill.kernels import raster
-from warpskill.primitives import (
+
+from warpskill.contract.camera import Intrinsics
+from warpskill.engine.primitives import (
     HAND_LENGTH,
     HAND_RADIUS,
     HAND_SEGMENTS,
@@ -20,8 +20,8 @@ from warpskill.primitives import (
     hand_vertices,
     prism_planes,
 )
-from warpskill.raycast import raycast_masks
-from warpskill.render import _Buffers, _SoftSilhouettes, render_silhouettes
+from warpskill.engine.raycast import raycast_masks
+from warpskill.engine.rendering import _Buffers, _SoftSilhouettes, render_silhouettes
 
 HEIGHT, ELEVATION = 0.30, 0.50  # camera [m], [rad]
 FULL = Intrinsics.default(240, 427)
@@ -260,8 +260,8 @@ def dense_masks(pixels, planes, sides, K, image_size, sigma):
 
 def projected_scene(s: dict, intrinsics: Intrinsics):
     """Projected vertices (F, P, 48, 2), camera-frame planes (F, P, 26, 4) and sides of a scene."""
-    from warpskill.camera import project, world_to_camera
-    from warpskill.render import _camera_facing, _pad
+    from warpskill.engine.projection import project, world_to_camera
+    from warpskill.engine.rendering import _camera_facing, _pad
 
     h, e = s["camera_height"], s["camera_elevation"]
     cams = [

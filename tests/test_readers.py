@@ -4,8 +4,14 @@ import cv2
 import numpy as np
 import pytest
 
-from warpskill.demonstration import DemonstrationError
-from warpskill.readers import davis_palette, read_label_images, read_mask_folders, read_video, read_video_demonstration
+from warpskill.contract.demonstration import DemonstrationError
+from warpskill.data.readers import (
+    davis_palette,
+    read_label_images,
+    read_mask_folders,
+    read_video,
+    read_video_demonstration,
+)
 
 N, H, W = 8, 32, 48
 

@@ -1,4 +1,4 @@
-"""Tests for warpskill.reconstruction: the reconstruction file of FORMATS.md."""
+"""Tests for warpskill.contract.reconstruction: the reconstruction file of FORMATS.md."""
 
 from __future__ import annotations
 
@@ -7,7 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from warpskill.reconstruction import FIELD_SHAPES, Reconstruction, ReconstructionError
+from warpskill.contract.reconstruction import (
+    FIELD_SHAPES,
+    Reconstruction,
+    ReconstructionError,
+)
 
 N, K = 5, 2
 

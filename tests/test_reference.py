@@ -1,4 +1,4 @@
-"""The Warp engine against its plain-Torch reference (``warpskill.reference``): values and
+"""The Warp engine against its plain-Torch reference (``warpskill.engine.reference``): values and
 gradients (Warp's bridges against Torch autograd) of the rollout and the soft silhouettes."""
 
 from __future__ import annotations
@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 import torch
 
-from warpskill.camera import Intrinsics
-from warpskill.initialize import SceneTrajectories, render_scene
-from warpskill.physics import simulate
-from warpskill.reference import render_reference, simulate_reference
-from warpskill.render import render_silhouettes
+from warpskill.contract.camera import Intrinsics
+from warpskill.engine.reference.physics import simulate_reference
+from warpskill.engine.reference.raster import render_reference
+from warpskill.engine.rendering import render_silhouettes
+from warpskill.engine.simulation import simulate
+from warpskill.optimizer.scene import SceneTrajectories, render_scene
 from warpskill.synthetic import make_demonstration, scripted_inputs, scripted_scene
 
 DURATION = 2.0  # [s]: 480 steps of 1/240 s, the hand grasps, carries and releases

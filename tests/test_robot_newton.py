@@ -9,7 +9,7 @@ pytest.importorskip("placo")
 pytest.importorskip("mujoco")
 pytest.importorskip("newton")
 pytest.importorskip("trimesh")  # Newton's URDF importer reads the collision meshes with it
-from warpskill.reconstruction import Reconstruction  # noqa: E402
+from warpskill.contract.reconstruction import Reconstruction  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
 
 robot = pytest.importorskip("warpskill.robot")

@@ -8,7 +8,7 @@ import pytest
 pytest.importorskip("placo")
 pytest.importorskip("mujoco")
 from warpskill.cli import main  # noqa: E402
-from warpskill.reconstruction import FIELD_SHAPES, Reconstruction  # noqa: E402
+from warpskill.contract.reconstruction import FIELD_SHAPES, Reconstruction  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
 
 robot = pytest.importorskip("warpskill.robot")

@@ -8,11 +8,16 @@ import numpy as np
 import pytest
 
 pytest.importorskip("placo")
-from warpskill.reconstruction import Reconstruction  # noqa: E402
+from warpskill.contract.reconstruction import Reconstruction  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
 
 robot = pytest.importorskip("warpskill.robot")
-from warpskill.robot.model import RobotModelError, make_scene, panda_description_dir, panda_urdf  # noqa: E402
+from warpskill.robot.model import (  # noqa: E402
+    RobotModelError,
+    make_scene,
+    panda_description_dir,
+    panda_urdf,
+)
 
 try:
     panda_description_dir()

@@ -4,10 +4,16 @@ import numpy as np
 import pytest
 import torch
 
-from warpskill.distances import box_signed_distance, support_height
-from warpskill.initialize import _far_from_contact, positive, positive_inverse
-from warpskill.optimization import majority_filter
-from warpskill.rotations import rotation_from_6d, rotation_log, rotation_to_6d, yaw_rotation
+from warpskill.contract.signals import majority_filter
+from warpskill.engine.distances import box_signed_distance, support_height
+from warpskill.engine.rotations import (
+    rotation_from_6d,
+    rotation_log,
+    rotation_to_6d,
+    yaw_rotation,
+)
+from warpskill.optimizer.scene import positive, positive_inverse
+from warpskill.optimizer.stage_a import _far_from_contact
 
 
 def test_6d_rotations_are_orthonormal_and_round_trip():

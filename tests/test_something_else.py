@@ -7,8 +7,12 @@ import numpy as np
 import pytest
 
 from warpskill.cli import main
-from warpskill.demonstration import DemonstrationError
-from warpskill.something_else import box_masks, read_something_else, something_else_demonstration
+from warpskill.contract.demonstration import DemonstrationError
+from warpskill.data.box_annotations import (
+    box_masks,
+    read_something_else,
+    something_else_demonstration,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 DEV = next((p / "data" / "something_else_dev" for p in (ROOT / "shared", ROOT.parent / "shared")

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from warpskill.actions import ACTIONS
-from warpskill.demonstration import Demonstration
-from warpskill.evaluation import evaluate
-from warpskill.reconstruction import Reconstruction
+from warpskill.contract.actions import ACTIONS
+from warpskill.contract.demonstration import Demonstration
+from warpskill.contract.evaluation import evaluate
+from warpskill.contract.reconstruction import Reconstruction
 from warpskill.synthetic import NOISE_LEVELS, make_demonstration
 
 

@@ -12,25 +12,25 @@ The public API, loaded on first use (so the command line starts fast):
 
 from __future__ import annotations
 
-from ._lazy import lazy_exports
+from warpskill.lazy import lazy_exports
 
 __version__ = "0.1.0"
 
 _EXPORTS = {
-    "ACTIONS": "actions",
-    "Demonstration": "demonstration",
-    "DemonstrationError": "demonstration",
-    "Reconstruction": "reconstruction",
-    "ReconstructionError": "reconstruction",
-    "optimize": "optimization",
-    "optimize_many": "optimization",
-    "OptimizeConfig": "optimization",
-    "LossWeights": "weights",
-    "evaluate": "evaluation",
-    "Evaluation": "evaluation",
-    "simulate": "physics",
-    "PhysicsConfig": "physics",
-    "render_silhouettes": "render",
+    "ACTIONS": "contract.actions",
+    "Demonstration": "contract.demonstration",
+    "DemonstrationError": "contract.demonstration",
+    "Reconstruction": "contract.reconstruction",
+    "ReconstructionError": "contract.reconstruction",
+    "optimize": "optimizer.pipeline",
+    "optimize_many": "optimizer.pipeline",
+    "OptimizeConfig": "optimizer.config",
+    "LossWeights": "optimizer.weights",
+    "evaluate": "contract.evaluation",
+    "Evaluation": "contract.evaluation",
+    "simulate": "engine.simulation",
+    "PhysicsConfig": "engine.simulation",
+    "render_silhouettes": "engine.rendering",
     "make_demonstration": "synthetic",
     "retarget": "robot.retargeting",
     "replay": "robot.replaying",

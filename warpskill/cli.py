@@ -140,7 +140,7 @@ def _add_placement_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _placement(args):
-    from .robot import Placement
+    from warpskill.robot.model import Placement
 
     return Placement(offset=tuple(args.offset), yaw=math.radians(args.yaw))
 
@@ -148,8 +148,9 @@ def _placement(args):
 def _reconstruct(demos, folders: list[Path], checkpoint: Path, args, *, init_only: bool = False,
                  pictures: bool = True):
     """Optimise ``demos`` together (resuming ``checkpoint``); write each npz and pictures into its folder."""
-    from .optimization import optimize_many, resolve_device
-    from .pictures import save_pictures
+    from warpskill.engine.device import resolve_device
+    from warpskill.optimizer.pipeline import optimize_many
+    from warpskill.visual.pictures import save_pictures
 
     resolve_device(args.device)
     checkpoint.parent.mkdir(parents=True, exist_ok=True)
@@ -174,7 +175,7 @@ def _reconstruct(demos, folders: list[Path], checkpoint: Path, args, *, init_onl
 
 
 def _report(recon, action) -> None:
-    from .evaluation import evaluate
+    from warpskill.contract.evaluation import evaluate
 
     if action:
         result = evaluate(recon, action)
@@ -184,8 +185,8 @@ def _report(recon, action) -> None:
 
 
 def _demo(args) -> int:
-    from .robot.video import prefer_headless_gl
-    from .synthetic import make_demonstration
+    from warpskill.robot.video import prefer_headless_gl
+    from warpskill.synthetic import make_demonstration
 
     prefer_headless_gl()
     demo = make_demonstration(args.action, seed=args.seed)
@@ -199,8 +200,10 @@ def _demo(args) -> int:
     if missing:
         print(f"robot steps skipped ({', '.join(missing)} not installed): pip install 'warpskill[robot]'")
         return 0
-    from .robot import PlanError, replay, retarget
-    from .robot.video import record
+    from warpskill.robot.plan import PlanError
+    from warpskill.robot.replaying import replay
+    from warpskill.robot.retargeting import retarget
+    from warpskill.robot.video import record
 
     try:
         plan = retarget(recon, placement=_placement(args))
@@ -225,7 +228,7 @@ def _installed(distribution: str) -> bool:
 
 
 def _optimize(args) -> int:
-    from .demonstration import Demonstration
+    from warpskill.contract.demonstration import Demonstration
 
     stems = [path.stem for path in args.demos]
     if len(set(stems)) < len(stems):
@@ -238,8 +241,8 @@ def _optimize(args) -> int:
 
 
 def _evaluate(args) -> int:
-    from .evaluation import evaluate
-    from .reconstruction import Reconstruction
+    from warpskill.contract.evaluation import evaluate
+    from warpskill.contract.reconstruction import Reconstruction
 
     recon = Reconstruction.load(args.reconstruction)
     action = args.action or str(recon.action) or None
@@ -253,8 +256,8 @@ def _evaluate(args) -> int:
 
 
 def _retarget(args) -> int:
-    from .reconstruction import Reconstruction
-    from .robot import retarget
+    from warpskill.contract.reconstruction import Reconstruction
+    from warpskill.robot.retargeting import retarget
 
     plan = retarget(Reconstruction.load(args.reconstruction), placement=_placement(args))
     _save_plan(plan, args.out)
@@ -271,12 +274,13 @@ def _save_plan(plan, path: Path) -> None:
 
 
 def _replay(args) -> int:
-    from .robot.video import prefer_headless_gl
+    from warpskill.robot.video import prefer_headless_gl
 
     prefer_headless_gl()
-    from .reconstruction import Reconstruction
-    from .robot import RobotPlan, replay
-    from .robot.video import record
+    from warpskill.contract.reconstruction import Reconstruction
+    from warpskill.robot.plan import RobotPlan
+    from warpskill.robot.replaying import replay
+    from warpskill.robot.video import record
 
     recon = Reconstruction.load(args.reconstruction)
     plan = RobotPlan.load(args.plan)
@@ -291,27 +295,27 @@ def _replay(args) -> int:
 
 
 def _bench_kernels(args) -> int:
-    from .bench import bench_kernels
+    from warpskill.bench.kernels import bench_kernels
 
     bench_kernels(device=args.device, repeats=args.repeats)
     return 0
 
 
 def _bench_speed(args) -> int:
-    from .bench_speed import bench_speed
+    from warpskill.bench.speed import bench_speed
 
     devices = ["cpu"] if args.device == "cpu" else ["cpu", args.device]
     bench_speed(devices=devices, engines=args.engines, repeats=args.repeats, measure_full=args.full,
                 scaling=args.scaling, threads=args.threads)
     if args.many:
-        from .bench_speed import bench_many
+        from warpskill.bench.speed import bench_many
 
         bench_many(batches=args.many, devices=devices)
     return 0
 
 
 def _bench_synthetic(args) -> int:
-    from .bench import bench_synthetic
+    from warpskill.bench.synthetic import bench_synthetic
 
     bench_synthetic(
         seeds=args.seeds, noise=args.noise, actions=args.actions, out=args.out, device=args.device,
@@ -321,7 +325,7 @@ def _bench_synthetic(args) -> int:
 
 
 def _bench_robot(args) -> int:
-    from .bench_robot import bench_robot
+    from warpskill.bench.robot import bench_robot
 
     if args.video and args.out is None:
         raise ValueError("--video needs an output folder: -o OUT")
@@ -331,7 +335,7 @@ def _bench_robot(args) -> int:
 
 
 def _bench_something_else(args) -> int:
-    from .bench_real import bench_something_else
+    from warpskill.bench.something_else import bench_something_else
 
     bench_something_else(
         args.annotations, args.phases, args.actions, out=args.out, iterations=args.iterations,

@@ -16,11 +16,11 @@ import cv2
 import numpy as np
 import torch
 
-from .actions import ACTIONS, check_action
-from .camera import Intrinsics
-from .demonstration import Demonstration
-from .physics import PhysicsConfig, simulate, substeps_per_frame
-from .raycast import raycast_masks
+from warpskill.contract.actions import ACTIONS, check_action
+from warpskill.contract.camera import Intrinsics
+from warpskill.contract.demonstration import Demonstration
+from warpskill.engine.raycast import raycast_masks
+from warpskill.engine.simulation import PhysicsConfig, simulate, substeps_per_frame
 
 GRASP_LEVEL = 0.02  # [m] |g| of the scripted grasp signal
 TIP_DEPTH = 0.012  # [m] how deep the scripted tip enters the object
@@ -83,7 +83,7 @@ def make_demonstration(
     """A synthetic demonstration of ``action`` with its ground truth in ``demo.truth``.
 
     Args:
-        action: one of :data:`warpskill.actions.ACTIONS`.
+        action: one of :data:`warpskill.contract.actions.ACTIONS`.
         seed: scene randomness (sizes, placements, camera, noise).
         noise: a name in :data:`NOISE_LEVELS` or a :class:`Noise`.
         image_size: (H, W) of the masks [px].
@@ -235,7 +235,7 @@ def _yaw(angle: float) -> np.ndarray:
 
 
 def scripted_inputs(script: _Script, fps: float, duration: float, dtype=torch.float64) -> dict[str, object]:
-    """Keyword arguments of :func:`warpskill.physics.simulate` (batch of one) for a script."""
+    """Keyword arguments of :func:`warpskill.engine.simulation.simulate` (batch of one) for a script."""
     physics = PhysicsConfig()
     spf = substeps_per_frame(fps, physics)
     num_frames = int(round(duration * fps)) + 1

@@ -10,7 +10,7 @@ for that engine); they are imported on first use.
 
 from __future__ import annotations
 
-from .._lazy import lazy_exports
+from warpskill.lazy import lazy_exports
 
 _EXPORTS = {
     "retarget": "retargeting",

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from warpskill.reconstruction import Reconstruction
+from warpskill.contract.reconstruction import Reconstruction
 
 ARM_JOINTS: tuple[str, ...] = tuple(f"panda_joint{i}" for i in range(1, 8))
 """The seven arm joints, base to wrist."""

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from warpskill.npz import read_npz, save_npz_atomic
+from warpskill.contract.npz import read_npz, save_npz_atomic
 
 
 class PlanError(ValueError):

@@ -11,8 +11,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from warpskill.reconstruction import Reconstruction
-from warpskill.robot.model import ARM_JOINTS, FINGER_JOINTS, TCP_FRAME, environment_boxes, make_scene, mujoco_urdf
+from warpskill.contract.reconstruction import Reconstruction
+from warpskill.robot.model import (
+    ARM_JOINTS,
+    FINGER_JOINTS,
+    TCP_FRAME,
+    environment_boxes,
+    make_scene,
+    mujoco_urdf,
+)
 from warpskill.robot.plan import RobotPlan
 
 TIMESTEP = 0.002  # [s]

@@ -43,10 +43,23 @@ import re
 
 import numpy as np
 
-from warpskill.reconstruction import Reconstruction
-from warpskill.robot.model import ARM_JOINTS, FINGER_JOINTS, environment_boxes, make_scene, panda_urdf
+from warpskill.contract.reconstruction import Reconstruction
+from warpskill.robot.model import (
+    ARM_JOINTS,
+    FINGER_JOINTS,
+    environment_boxes,
+    make_scene,
+    panda_urdf,
+)
 from warpskill.robot.plan import RobotPlan
-from warpskill.robot.replay_mujoco import ARM_KP, ARM_KV, FINGER_KP, FRICTION, GRIP_FORCE, OBJECT_MASS
+from warpskill.robot.replay_mujoco import (
+    ARM_KP,
+    ARM_KV,
+    FINGER_KP,
+    FRICTION,
+    GRIP_FORCE,
+    OBJECT_MASS,
+)
 
 TIMESTEP = 0.002  # [s], as MuJoCo's
 ITERATIONS = 12  # projected Gauss-Seidel iterations per step

@@ -3,7 +3,7 @@
 :func:`replay` simulates the Panda, the table and the cuboids under position control of the
 plan, samples the gripper and the object at the reconstruction's frame rate from the
 plan's ``start_time`` (the end of the lead-in) to its end, and packs them as a
-:class:`~warpskill.reconstruction.Reconstruction`: the ``hand_*`` fields hold the gripper's
+:class:`~warpskill.contract.reconstruction.Reconstruction`: the ``hand_*`` fields hold the gripper's
 TCP (hand frame of ``FORMATS.md``: origin at the TCP, local +z from the fingers towards
 the arm), ``grasp`` the gripper command (+0.02 closing, -0.02 open), ``grasped`` whether
 both fingers touch the object, the ``object_*`` fields the simulated object.
@@ -16,8 +16,8 @@ import time
 
 import numpy as np
 
-from warpskill.evaluation import Evaluation, evaluate
-from warpskill.reconstruction import Reconstruction
+from warpskill.contract.evaluation import Evaluation, evaluate
+from warpskill.contract.reconstruction import Reconstruction
 from warpskill.robot.plan import RobotPlan
 
 ENGINES: tuple[str, ...] = ("mujoco", "newton")
@@ -50,8 +50,8 @@ class Replay:
 
     def save(self, path) -> None:
         """Write ``replay.npz``: the reconstruction keys of FORMATS.md plus ``success`` and ``engine``."""
-        from warpskill.npz import save_npz_atomic
-        from warpskill.reconstruction import FIELD_SHAPES
+        from warpskill.contract.npz import save_npz_atomic
+        from warpskill.contract.reconstruction import FIELD_SHAPES
 
         arrays = {name: getattr(self.reconstruction, name) for name in FIELD_SHAPES}
         arrays["success"] = np.array(self.success)

@@ -32,11 +32,20 @@ import time
 
 import numpy as np
 
-from warpskill.reconstruction import Reconstruction
+from warpskill.contract.reconstruction import Reconstruction
 from warpskill.robot.grasps import GraspPose, candidate_poses, rank_poses
 from warpskill.robot.model import (
-    ARM_JOINTS, FINGER_JOINTS, FINGER_SPEED, HOME_Q, MAX_OPENING, TCP_FRAME, Placement, Scene, collision_pairs,
-    make_scene, planner_urdf,
+    ARM_JOINTS,
+    FINGER_JOINTS,
+    FINGER_SPEED,
+    HOME_Q,
+    MAX_OPENING,
+    TCP_FRAME,
+    Placement,
+    Scene,
+    collision_pairs,
+    make_scene,
+    planner_urdf,
 )
 from warpskill.robot.plan import _CLOSE_TIME as CLOSE_TIME
 from warpskill.robot.plan import _OPEN_TIME as OPEN_TIME

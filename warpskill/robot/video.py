@@ -50,7 +50,7 @@ _offscreen = {"failed": False}  # MuJoCo aborts the process on a second try afte
 def record(plan, recon, result, out: Path) -> Path:
     """Write ``out/replay.mp4``, the whole plan replayed in MuJoCo and rendered offscreen, or,
     where no renderer works, ``out/replay.png`` (a 3D plot of the replayed paths)."""
-    from warpskill.pictures import write_video
+    from warpskill.visual.media import write_video
 
     frames = None if _offscreen["failed"] else _render(plan, recon)
     if frames is None:

@@ -1,0 +1,31 @@
+"""The data contract (``FORMATS.md``): the files warpskill reads and writes, in NumPy only.
+
+Owns the demonstration and reconstruction files (:class:`Demonstration`,
+:class:`Reconstruction`, their ``.npz`` I/O and checks), the action names, the camera
+intrinsics, the contact-signal filter and the paper's success criteria (:func:`evaluate`).
+May import NumPy and the standard library only: loading a file, judging a reconstruction
+or reading annotations never pulls in torch or Warp.
+"""
+
+from warpskill.contract.actions import ACTIONS, check_action, has_static_object
+from warpskill.contract.camera import Intrinsics, default_intrinsics
+from warpskill.contract.demonstration import Demonstration, DemonstrationError
+from warpskill.contract.evaluation import Evaluation, evaluate, success_table
+from warpskill.contract.reconstruction import Reconstruction, ReconstructionError
+from warpskill.contract.signals import majority_filter
+
+__all__ = [
+    "ACTIONS",
+    "Demonstration",
+    "DemonstrationError",
+    "Evaluation",
+    "Intrinsics",
+    "Reconstruction",
+    "ReconstructionError",
+    "check_action",
+    "default_intrinsics",
+    "evaluate",
+    "has_static_object",
+    "majority_filter",
+    "success_table",
+]

@@ -1,0 +1,30 @@
+"""Real recordings to a :class:`~warpskill.contract.Demonstration`: NumPy and OpenCV only.
+
+Owns the readers of label images, mask folders and videos (:mod:`.readers`), the
+Something-Else box annotations (:mod:`.box_annotations`), mask clean-up (:mod:`.masks`),
+contact estimation and the paper's filter (:mod:`.contact`) and the propagation of one
+annotated frame through a video (:mod:`.propagation`). May import :mod:`warpskill.contract`;
+never torch, Warp, the engine or the optimiser.
+"""
+
+from warpskill.data.box_annotations import SomethingElseVideo, read_something_else, something_else_demonstration
+from warpskill.data.contact import estimate_contact, filter_contact, read_detections
+from warpskill.data.masks import clean_masks
+from warpskill.data.propagation import propagate_masks, read_polygons
+from warpskill.data.readers import read_label_images, read_mask_folders, read_video, read_video_demonstration
+
+__all__ = [
+    "SomethingElseVideo",
+    "clean_masks",
+    "estimate_contact",
+    "filter_contact",
+    "propagate_masks",
+    "read_detections",
+    "read_label_images",
+    "read_mask_folders",
+    "read_polygons",
+    "read_something_else",
+    "read_video",
+    "read_video_demonstration",
+    "something_else_demonstration",
+]

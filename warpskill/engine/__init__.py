@@ -1,0 +1,24 @@
+"""The differentiable engine: Torch autograd bridges over the Warp kernels, and their references.
+
+Owns the rollout (:func:`simulate`, :mod:`.simulation`), the soft silhouettes
+(:func:`render_silhouettes`, :mod:`.rendering`), the scene primitives, the camera's
+projection, the exact NumPy ray cast, small differentiable geometry and rotation helpers,
+and :mod:`.reference` (the plain-Torch oracle and the paper's dopri5 integrator). May
+import :mod:`warpskill.kernels`, :mod:`warpskill.contract`, torch and Warp; never the
+optimiser, data, robot or tools.
+"""
+
+from warpskill.engine.device import resolve_device
+from warpskill.engine.raycast import raycast_masks
+from warpskill.engine.rendering import render_silhouettes
+from warpskill.engine.simulation import PhysicsConfig, Rollout, simulate, substeps_per_frame
+
+__all__ = [
+    "PhysicsConfig",
+    "Rollout",
+    "raycast_masks",
+    "render_silhouettes",
+    "resolve_device",
+    "simulate",
+    "substeps_per_frame",
+]

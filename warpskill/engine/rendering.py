@@ -1,0 +1,260 @@
+"""Differentiable soft silhouettes of the hand and the cuboids (``docs/architecture.md``).
+
+Vertices and their projection are plain Torch, so autograd carries gradients to poses,
+sizes and the camera; the raster is a ``torch.autograd.Function`` over the Warp kernels of
+``warpskill.kernels.raster``, whose backward turns per-edge moments into gradients with
+respect to the projected vertices in closed form.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from typing import NamedTuple
+
+import torch
+import warp as wp
+from warpskill.kernels import raster
+
+from warpskill.contract.camera import Intrinsics
+from warpskill.engine.primitives import (
+    HAND_SEGMENTS,
+    NEAR_PLANE,
+    cuboid_vertices,
+    hand_axis_extent,
+    hand_vertices,
+    prism_planes,
+)
+from warpskill.engine.projection import project, world_to_camera
+
+_MAX_VERTICES = 2 * raster.MAX_SIDES
+_MAX_PLANES = raster.MAX_SIDES + 2
+
+
+def render_silhouettes(
+    hand_pos: torch.Tensor,
+    hand_rot: torch.Tensor,
+    cuboid_pos: torch.Tensor,
+    cuboid_rot: torch.Tensor,
+    cuboid_size: torch.Tensor,
+    camera_height: torch.Tensor,
+    camera_elevation: torch.Tensor,
+    intrinsics: Intrinsics,
+    *,
+    sigma: float = 1.0,
+) -> torch.Tensor:
+    """Soft visible masks of the hand and the cuboids in every frame.
+
+    The hand is clipped to the part of its axis in front of the near plane
+    (:func:`warpskill.engine.primitives.hand_axis_extent`); a cuboid with a vertex closer than
+    ``NEAR_PLANE`` to the camera plane is not drawn.
+
+    Args:
+        hand_pos: (F, 3) hand tip positions [m].
+        hand_rot: (F, 3, 3) hand rotations.
+        cuboid_pos: (F, C, 3) cuboid centres [m], C >= 0.
+        cuboid_rot: (F, C, 3, 3) cuboid rotations.
+        cuboid_size: (C, 3) or (F, C, 3) cuboid edge lengths [m].
+        camera_height: scalar camera height [m].
+        camera_elevation: scalar camera elevation [rad].
+        intrinsics: camera intrinsics; ``intrinsics.image_size`` (H, W) is the output size.
+        sigma: edge softness [px]; coverage is sigmoid(-signed distance / sigma).
+
+    Returns:
+        (F, 1 + C, H, W) visible masks in [0, 1], in the dtype of ``hand_pos``: channel 0
+        the hand, then the cuboids in order.
+    """
+    _validate(
+        hand_pos, hand_rot, cuboid_pos, cuboid_rot, cuboid_size, camera_height, camera_elevation, intrinsics, sigma
+    )
+    dtype = hand_pos.dtype
+    F, C = cuboid_pos.shape[:2]
+    cuboid_size = cuboid_size.to(dtype).expand(F, C, 3)
+
+    t0, t1, hand_visible = hand_axis_extent(hand_pos, hand_rot, camera_height, camera_elevation)
+    hand = world_to_camera(hand_vertices(hand_pos, hand_rot, extent=(t0, t1)), camera_height, camera_elevation)
+    cuboids = world_to_camera(
+        cuboid_vertices(cuboid_pos.to(dtype), cuboid_rot.to(dtype), cuboid_size), camera_height, camera_elevation
+    )
+    camera = [hand.unsqueeze(1), cuboids]  # (F, 1, 48, 3), (F, C, 8, 3)
+    visible = torch.cat([hand_visible.unsqueeze(1), (cuboids[..., 2] >= NEAR_PLANE).all(dim=-1)], dim=1)
+    pixels = torch.cat([_pad(project(v, intrinsics.K), _MAX_VERTICES) for v in camera], dim=1)
+    planes = _camera_facing(torch.cat([_pad(prism_planes(v.detach()), _MAX_PLANES) for v in camera], dim=1))
+    sides = torch.tensor([HAND_SEGMENTS] + [4] * C, dtype=torch.int32, device=hand_pos.device)
+    K = intrinsics.K
+    camera_vec = (float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]))
+    image_size = tuple(intrinsics.image_size)
+    masks = _SoftSilhouettes.apply(pixels, planes, visible, sides, camera_vec, image_size, float(sigma))
+    return masks.to(dtype)
+
+
+def _camera_facing(planes: torch.Tensor) -> torch.Tensor:
+    """Move the faces that see the camera (d < 0) first; the others (zeroed) cannot hold a ray's entry."""
+    facing = planes[..., 3:] < 0
+    order = torch.argsort((~facing[..., 0]).to(torch.int8), dim=-1, stable=True)
+    return torch.gather(planes * facing, -2, order.unsqueeze(-1).expand_as(planes))
+
+
+def _pad(x: torch.Tensor, rows: int) -> torch.Tensor:
+    """Zero-pad dimension -2 of x to ``rows``."""
+    return torch.nn.functional.pad(x, (0, 0, 0, rows - x.shape[-2]))
+
+
+class _SoftSilhouettes(torch.autograd.Function):
+    """Visible soft masks (F, P, H, W) from projected prism vertices (F, P, V, 2) [px].
+
+    Non-differentiable inputs: face planes (F, P, 26, 4) in camera coordinates, camera-facing
+    first (:func:`_camera_facing`), visibility (F, P) bool, prism sides (P,) int32,
+    intrinsics (fx, fy, cx, cy), image size (H, W) and sigma [px].
+    """
+
+    @staticmethod
+    def forward(ctx, pixels, planes, visible, sides, camera_vec, image_size, sigma):
+        wp.init()  # no-op once Warp is up
+        F, P = pixels.shape[:2]
+        device = pixels.device
+        f32, i32 = {"dtype": torch.float32, "device": device}, {"dtype": torch.int32, "device": device}
+        buffers = _Buffers(
+            vertices=pixels.detach().to(torch.float32).contiguous(),
+            hull=torch.zeros(F, P, raster.MAX_HULL, **i32),
+            count=torch.zeros(F, P, **i32),
+            line=torch.zeros(F, P, raster.MAX_HULL, 3, **f32),
+            bound=torch.zeros(F, P, 4, **f32),
+            plane_count=(planes[..., 3] < 0).sum(dim=-1, dtype=torch.int32),
+            plane=planes.to(torch.float32).contiguous(),
+        )
+        mask = torch.zeros(F, P, *image_size, **f32)
+        with _torch_stream(device):
+            views = buffers.views()
+            visible = wp.from_torch(visible.to(torch.int32))
+            raster.build_hulls(wp.from_torch(sides), raster.CUTOFF * sigma, visible, *views[:5])
+            raster.rasterize(wp.vec4(*camera_vec), sigma, *views, wp.from_torch(mask))
+        ctx.save_for_backward(pixels.detach(), *buffers)
+        ctx.camera_vec, ctx.sigma = camera_vec, sigma
+        return mask
+
+    @staticmethod
+    def backward(ctx, mask_grad):
+        pixels, *saved = ctx.saved_tensors
+        buffers = _Buffers(*saved)
+        moment = torch.zeros(*buffers.hull.shape, 3, dtype=torch.float32, device=pixels.device)
+        with _torch_stream(pixels.device):
+            grad = wp.from_torch(mask_grad.to(torch.float32).contiguous())
+            raster.rasterize_backward(
+                wp.vec4(*ctx.camera_vec), ctx.sigma, *buffers.views(), grad, wp.from_torch(moment, dtype=wp.vec3)
+            )
+        return _vertex_gradients(pixels, buffers.hull, buffers.count, moment), None, None, None, None, None, None
+
+
+class _Buffers(NamedTuple):
+    """Raster buffers shared by the forward and backward kernels, in their argument order."""
+
+    vertices: torch.Tensor  # (F, P, V, 2) float32 projected vertices [px]
+    hull: torch.Tensor  # (F, P, MAX_HULL) int32 hull vertex indices, counter-clockwise
+    count: torch.Tensor  # (F, P) int32 hull sizes (0: not drawn)
+    line: torch.Tensor  # (F, P, MAX_HULL, 3) float32 edge lines (unit outward normal, offset)
+    bound: torch.Tensor  # (F, P, 4) float32 padded screen bounds (u0, v0, u1, v1) [px]
+    plane_count: torch.Tensor  # (F, P) int32 camera-facing planes
+    plane: torch.Tensor  # (F, P, 26, 4) float32 face planes, camera-facing first
+
+    def views(self) -> list[wp.array]:
+        """Zero-copy Warp views."""
+        return [
+            wp.from_torch(self.vertices, dtype=wp.vec2),
+            wp.from_torch(self.hull),
+            wp.from_torch(self.count),
+            wp.from_torch(self.line, dtype=wp.vec3),
+            wp.from_torch(self.bound, dtype=wp.vec4),
+            wp.from_torch(self.plane_count),
+            wp.from_torch(self.plane, dtype=wp.vec4),
+        ]
+
+
+def _vertex_gradients(
+    pixels: torch.Tensor, hull: torch.Tensor, count: torch.Tensor, moment: torch.Tensor
+) -> torch.Tensor:
+    """dL/d(projected vertices) from per-edge moments.
+
+    Along hull edge e from a to b (length L, outward normal n), sd(p) = cross(p - a, b - a) / L
+    is linear in p, so sum_p g_p sd(p) = cross(M, b - a) / L with M = sum_p g_p (p - a) and
+    G = sum_p g_p; its derivatives with respect to a and b follow with M, G held fixed and
+    M's own dependence on a (dM/da = -G).
+
+    Args:
+        pixels: (F, P, V, 2) projected vertices [px].
+        hull: (F, P, E) hull vertex indices; count: (F, P) hull sizes.
+        moment: (F, P, E, 3) per-edge (G, M).
+
+    Returns:
+        (F, P, V, 2) gradient, dtype of ``pixels``.
+    """
+    E = hull.shape[-1]
+    slot = torch.arange(E, device=hull.device)
+    used = slot < count.unsqueeze(-1)  # (F, P, E)
+    after = torch.where(slot + 1 < count.unsqueeze(-1), slot + 1, torch.zeros_like(slot))
+    ia = hull.long()
+    ib = torch.gather(ia, -1, after)
+
+    def at(index):
+        return torch.gather(pixels, 2, index.unsqueeze(-1).expand(*index.shape, 2))
+
+    a, b = at(ia), at(ib)
+    m = moment.to(pixels.dtype) * used.unsqueeze(-1)
+    G, M = m[..., 0:1], m[..., 1:]
+    e = b - a
+    length = e.norm(dim=-1, keepdim=True).clamp_min(1e-12)
+    cross = M[..., 0:1] * e[..., 1:2] - M[..., 1:2] * e[..., 0:1]
+    grad_b = torch.cat([-M[..., 1:2], M[..., 0:1]], dim=-1) / length - cross * e / length**3
+    normal = torch.cat([e[..., 1:2], -e[..., 0:1]], dim=-1) / length
+    grad_a = -grad_b - G * normal
+    grad = torch.zeros_like(pixels)
+    grad.scatter_add_(2, ia.unsqueeze(-1).expand_as(grad_a), grad_a)
+    grad.scatter_add_(2, ib.unsqueeze(-1).expand_as(grad_b), grad_b)
+    return grad
+
+
+def _torch_stream(device: torch.device):
+    """Run Warp launches on Torch's current CUDA stream (nothing to do on the CPU)."""
+    if device.type == "cuda":
+        return wp.ScopedStream(wp.stream_from_torch(device))
+    return contextlib.nullcontext()
+
+
+def _validate(
+    hand_pos, hand_rot, cuboid_pos, cuboid_rot, cuboid_size, camera_height, camera_elevation, intrinsics, sigma
+) -> None:
+    """Raise ValueError on inputs :func:`render_silhouettes` cannot take."""
+    tensors = {
+        "hand_pos": hand_pos,
+        "hand_rot": hand_rot,
+        "cuboid_pos": cuboid_pos,
+        "cuboid_rot": cuboid_rot,
+        "cuboid_size": cuboid_size,
+        "camera_height": camera_height,
+        "camera_elevation": camera_elevation,
+    }
+    for name, t in tensors.items():
+        if not isinstance(t, torch.Tensor) or not t.is_floating_point():
+            raise ValueError(f"{name} must be a floating-point torch.Tensor, got {type(t).__name__}")
+        if t.device != hand_pos.device:
+            raise ValueError(f"{name} is on {t.device}, hand_pos on {hand_pos.device}")
+    for name in ("camera_height", "camera_elevation"):
+        if tensors[name].numel() != 1 or tensors[name].dim() > 1:
+            raise ValueError(f"{name} must be a scalar tensor, got shape {tuple(tensors[name].shape)}")
+    if hand_pos.dim() != 2 or hand_pos.shape[1] != 3:
+        raise ValueError(f"hand_pos must be (F, 3), got {tuple(hand_pos.shape)}")
+    F = hand_pos.shape[0]
+    if hand_rot.shape != (F, 3, 3):
+        raise ValueError(f"hand_rot must be ({F}, 3, 3), got {tuple(hand_rot.shape)}")
+    if cuboid_pos.dim() != 3 or cuboid_pos.shape[0] != F or cuboid_pos.shape[2] != 3:
+        raise ValueError(f"cuboid_pos must be ({F}, C, 3), got {tuple(cuboid_pos.shape)}")
+    C = cuboid_pos.shape[1]
+    if cuboid_rot.shape != (F, C, 3, 3):
+        raise ValueError(f"cuboid_rot must be ({F}, {C}, 3, 3), got {tuple(cuboid_rot.shape)}")
+    if cuboid_size.shape not in ((C, 3), (F, C, 3)):
+        raise ValueError(f"cuboid_size must be ({C}, 3) or ({F}, {C}, 3), got {tuple(cuboid_size.shape)}")
+    if 1 + C > raster.MAX_PRIMITIVES:
+        raise ValueError(f"at most {raster.MAX_PRIMITIVES - 1} cuboids, got {C}")
+    if not isinstance(intrinsics, Intrinsics):
+        raise ValueError(f"intrinsics must be an Intrinsics, got {type(intrinsics).__name__}")
+    if not (isinstance(sigma, (int, float)) and 0.0 < sigma < float("inf")):
+        raise ValueError(f"sigma must be a positive finite number [px], got {sigma!r}")

@@ -1,0 +1,15 @@
+"""The two-stage optimisation of the paper: a demonstration in, a reconstruction out.
+
+Owns the pipeline (:func:`optimize`, :func:`optimize_many`), its settings
+(:class:`OptimizeConfig`, :class:`LossWeights`), the scene both stages share
+(:mod:`.scene`), stage (a) (:mod:`.stage_a`: a physics-free fit of per-frame poses) and
+stage (b) (:mod:`.stage_b`: the physics scene and its objective), the Adam loop and its
+checkpoints, batching of many scenes per engine call, and the mask losses. May import
+:mod:`warpskill.engine` and :mod:`warpskill.contract`; never data, robot, bench or visual.
+"""
+
+from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.pipeline import optimize, optimize_many
+from warpskill.optimizer.weights import LossWeights
+
+__all__ = ["LossWeights", "OptimizeConfig", "optimize", "optimize_many"]

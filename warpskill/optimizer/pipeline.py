@@ -1,0 +1,206 @@
+"""``warpskill.optimize``: a demonstration in, physically admissible trajectories out.
+
+Two stages, as in the paper: (a) a physics-free fit of per-frame poses (:mod:`.initialize`),
+from each of two hypotheses about the object's depth (the lower loss wins), gives a first
+camera and trajectories; (b) the physics stage (:mod:`.physical_scene`)
+optimises the initial states, the hand's velocity spline, the sizes and the camera through
+the Warp engine. Both use Adam (amsgrad) with a reduce-on-plateau schedule that returns to
+the best parameters whenever it lowers the learning rate.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import replace
+from typing import Sequence
+
+import numpy as np
+import torch
+
+from warpskill.contract.demonstration import Demonstration
+from warpskill.contract.reconstruction import Reconstruction
+from warpskill.engine.device import resolve_device
+from warpskill.engine.distances import box_signed_distance
+from warpskill.optimizer.batching import Backend, render_many, simulate_many
+from warpskill.optimizer.checkpoint import Checkpoint, fingerprint
+from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.inputs import working_inputs
+from warpskill.optimizer.loop import minimise
+from warpskill.optimizer.scene import SceneTrajectories
+from warpskill.optimizer.stage_a import (
+    OBJECT_DEPTH_HYPOTHESES,
+    InitialParameters,
+    initial_guess,
+    initial_objective,
+)
+from warpskill.optimizer.stage_b import (
+    PhysicalRollout,
+    make_physical_scene,
+    physical_objective,
+)
+
+
+def optimize(
+    demo: Demonstration,
+    *,
+    device: str | torch.device | None = None,
+    iterations: int | None = None,
+    seed: int = 0,
+    progress: bool = True,
+    config: OptimizeConfig | None = None,
+    init_only: bool = False,
+    checkpoint: str | os.PathLike | None = None,
+    backend: Backend | None = None,
+) -> Reconstruction:
+    """Reconstruct physically admissible hand and object trajectories from a demonstration.
+
+    Args:
+        demo: the demonstration (masks, contact, fps, camera intrinsics).
+        device: torch/Warp device (``"cpu"``, ``"cuda"``, ...); default CPU.
+        iterations: physics-stage iterations; default ``config.iterations``.
+        seed: seed of torch's generator (results are deterministic per seed and device).
+        progress: show progress bars.
+        config: optimisation settings; default :class:`OptimizeConfig`.
+        init_only: stop after stage (a) (the paper's "initialisation only" ablation).
+        checkpoint: a file where the run saves its state and best result as it goes; an
+            existing checkpoint of the same demonstration and settings is resumed.
+        backend: the rollout and rasterizer (default: the Warp engine).
+
+    Returns:
+        The reconstruction, in the world frame of FORMATS.md, at the video's frames.
+    """
+    return optimize_many([demo], device=device, iterations=iterations, seed=seed, progress=progress, config=config,
+                         init_only=init_only, checkpoint=checkpoint, backend=backend)[0]
+
+
+def optimize_many(
+    demos: Sequence[Demonstration],
+    *,
+    device: str | torch.device | None = None,
+    iterations: int | None = None,
+    seed: int = 0,
+    progress: bool = True,
+    config: OptimizeConfig | None = None,
+    init_only: bool = False,
+    checkpoint: str | os.PathLike | None = None,
+    backend: Backend | None = None,
+) -> list[Reconstruction]:
+    """Reconstruct B demonstrations side by side: :func:`optimize` on each, in shared engine calls.
+
+    Every iteration rolls out all B scenes in one engine call and renders all their frames
+    in one raster launch (per group of demonstrations that share the frame rate, the
+    intrinsics, the working image size and the number of static objects; see
+    :mod:`warpskill.optimizer.batching`). Each demonstration keeps its own parameters, learning-rate
+    schedule, early stop and best result, so each reconstruction is the one
+    :func:`optimize` would return, up to floating-point rounding.
+
+    Args:
+        demos: the demonstrations.
+        device, iterations, seed, progress, config, init_only, backend: as :func:`optimize`.
+        checkpoint: one file for the whole batch (resumed only for the same demonstrations
+            and settings).
+
+    Returns:
+        One reconstruction per demonstration, in order.
+
+    Raises:
+        ValueError: no demonstrations.
+    """
+    if len(demos) == 0:
+        raise ValueError("optimize_many needs at least one demonstration")
+    config = config or OptimizeConfig()
+    if iterations is not None:
+        config = replace(config, iterations=int(iterations))
+    backend = backend or Backend()
+    device = resolve_device(device)
+    torch.manual_seed(seed)
+    store = Checkpoint(checkpoint, fingerprint(demos, config, seed, backend))
+    inputs = [working_inputs(demo, config, device) for demo in demos]
+    weights, sigma = config.weights, config.sigma
+
+    # Stage (a): every demonstration from each object-depth hypothesis; the lower loss wins.
+    owners, candidates = [], []
+    for i, (demo, given) in enumerate(zip(demos, inputs)):
+        for hypothesis in OBJECT_DEPTH_HYPOTHESES:
+            guess = initial_guess(given.masks.cpu().numpy(), given.contact_signal, given.intrinsics, demo.num_static,
+                                  object_depth=hypothesis)
+            owners.append(i)
+            candidates.append(InitialParameters(guess).to(device))
+
+    def stage_a(live: list[int]) -> list[dict[str, torch.Tensor]]:
+        scenes = [candidates[j].scene() for j in live]
+        rendered = render_many(scenes, [inputs[owners[j]].intrinsics for j in live], sigma, backend.render)
+        return [
+            initial_objective(scene, masks, inputs[owners[j]].targets, inputs[owners[j]].contact,
+                              demos[owners[j]].fps, weights)
+            for j, scene, masks in zip(live, scenes, rendered)
+        ]
+
+    losses = minimise(candidates, stage_a, iterations=config.init_iterations,
+                       learning_rate=config.init_learning_rate, config=config, progress=progress,
+                       label="initialisation", store=store)
+    fits, stage_a_losses = [], []
+    for i in range(len(demos)):
+        j = min((j for j in range(len(owners)) if owners[j] == i), key=lambda j: losses[j])
+        fits.append(candidates[j].scene().detached())
+        stage_a_losses.append(losses[j])
+    if init_only:
+        reconstructions = []
+        for demo, given, fit, loss in zip(demos, inputs, fits, stage_a_losses):
+            grasp = (2 * given.contact - 1) * weights.grasp_margin
+            distance = box_signed_distance(fit.hand_pos, fit.object_pos, fit.object_rot, fit.object_size)
+            reconstructions.append(_reconstruction(demo, fit, grasp, given.contact * (distance < 0), loss))
+        return reconstructions
+
+    # Stage (b): the physics.
+    scenes = [make_physical_scene(fit, given.contact_signal, demo.fps, config).to(device)
+              for demo, given, fit in zip(demos, inputs, fits)]
+
+    def simulate_scenes(live: list[int]) -> list[PhysicalRollout]:
+        rollouts = simulate_many([scenes[b].simulation_inputs() for b in live], backend.simulate)
+        return [scenes[b].assemble(rollout) for b, rollout in zip(live, rollouts)]
+
+    def stage_b(live: list[int]) -> list[dict[str, torch.Tensor]]:
+        results = simulate_scenes(live)
+        rendered = render_many([r.scene for r in results], [inputs[b].intrinsics for b in live], sigma, backend.render)
+        return [
+            physical_objective(result, masks, inputs[b].targets, inputs[b].contact, inputs[b].object_visible, weights)
+            for b, result, masks in zip(live, results, rendered)
+        ]
+
+    losses = minimise(scenes, stage_b, iterations=config.iterations, learning_rate=config.learning_rate,
+                       config=config, progress=progress, label="physics", store=store)
+    with torch.no_grad():
+        results = simulate_scenes(list(range(len(demos))))
+    return [
+        _reconstruction(demo, result.scene, result.rollout.grasp, result.rollout.grasped, loss)
+        for demo, result, loss in zip(demos, results, losses)
+    ]
+
+
+def _reconstruction(
+    demo: Demonstration, scene: SceneTrajectories, grasp: torch.Tensor, grasped: torch.Tensor, loss: float
+) -> Reconstruction:
+    """The FORMATS.md reconstruction of a per-frame scene, at the demonstration's full resolution."""
+    n = lambda x: x.detach().cpu().double().numpy()  # noqa: E731
+    N = demo.num_frames
+    return Reconstruction(
+        fps=np.float64(demo.fps),
+        t=np.arange(N) / demo.fps,
+        hand_pos=n(scene.hand_pos),
+        hand_rot=n(scene.hand_rot),
+        grasp=n(grasp),
+        grasped=n(grasped),
+        object_pos=n(scene.object_pos),
+        object_rot=n(scene.object_rot),
+        object_size=n(scene.object_size),
+        static_pos=n(scene.static_pos),
+        static_rot=n(scene.static_rot),
+        static_size=n(scene.static_size),
+        camera_K=np.asarray(demo.intrinsics.K, dtype=np.float64),
+        camera_elevation=n(scene.camera_elevation),
+        camera_height=n(scene.camera_height),
+        image_size=np.asarray(demo.image_size, dtype=np.int64),
+        action=demo.action or "",
+        loss=np.float64(loss),
+    )

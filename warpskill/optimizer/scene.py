@@ -1,0 +1,86 @@
+"""The scene both stages optimise: per-frame hand, object and static cuboids and the camera, in Torch, and its rendering."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from warpskill.contract.camera import Intrinsics
+from warpskill.engine.rendering import render_silhouettes
+from warpskill.engine.rotations import yaw_rotation
+from warpskill.optimizer.losses import MaskTargets, diou_loss
+from warpskill.optimizer.weights import LossWeights
+
+
+@dataclass
+class SceneTrajectories:
+    """Per-frame scene: the output of stage (a) and the shape of every reconstruction.
+
+    Tensors: hand_pos (N, 3), hand_rot (N, 3, 3), object_pos (N, 3), object_rot (N, 3, 3),
+    object_size (3,), static_pos (K, 3), static_rot (K, 3, 3), static_size (K, 3) [m];
+    camera_height [m] and camera_elevation [rad] are 0-d tensors.
+    """
+
+    hand_pos: torch.Tensor
+    hand_rot: torch.Tensor
+    object_pos: torch.Tensor
+    object_rot: torch.Tensor
+    object_size: torch.Tensor
+    static_pos: torch.Tensor
+    static_rot: torch.Tensor
+    static_size: torch.Tensor
+    camera_height: torch.Tensor
+    camera_elevation: torch.Tensor
+
+    def detached(self, device: str | torch.device | None = None) -> "SceneTrajectories":
+        """A copy with every tensor detached from the autograd graph (and moved to ``device``)."""
+        return SceneTrajectories(**{k: v.detach().to(device).clone() for k, v in vars(self).items()})
+
+
+def positive(raw: torch.Tensor, minimum: float) -> torch.Tensor:
+    """Map unconstrained parameters to values > ``minimum`` (softplus)."""
+    return minimum + torch.nn.functional.softplus(raw)
+
+
+def positive_inverse(value: torch.Tensor, minimum: float) -> torch.Tensor:
+    """Inverse of :func:`positive`."""
+    x = (torch.as_tensor(value) - minimum).clamp_min(1e-6)
+    return x + torch.log(-torch.expm1(-x))
+
+
+def static_poses(xy: torch.Tensor, yaw: torch.Tensor, size: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """World poses of static cuboids resting on the ground: (K, 3) centres, (K, 3, 3) rotations."""
+    pos = torch.cat([xy, 0.5 * size[:, 2:3]], dim=-1)
+    return pos, yaw_rotation(yaw)
+
+
+def perceptual_loss(rendered: torch.Tensor, targets: MaskTargets, weights: LossWeights) -> torch.Tensor:
+    """Weighted mean dIoU over frames: hand, object, then static channels (N, C, h, w)."""
+    per_mask, _ = diou_loss(rendered, targets)
+    channel_weights = torch.tensor(
+        [weights.hand, weights.object] + [weights.static] * (rendered.shape[1] - 2),
+        dtype=rendered.dtype,
+        device=rendered.device,
+    )
+    return (per_mask * channel_weights).sum(1).mean()
+
+
+def render_scene(scene: SceneTrajectories, intrinsics: Intrinsics, sigma: float) -> torch.Tensor:
+    """Soft visible masks (N, 2 + K, h, w) of a per-frame scene: hand, object, statics."""
+    N = scene.hand_pos.shape[0]
+    K = scene.static_pos.shape[0]
+    cuboid_pos = torch.cat([scene.object_pos[:, None], scene.static_pos[None].expand(N, K, 3)], dim=1)
+    cuboid_rot = torch.cat([scene.object_rot[:, None], scene.static_rot[None].expand(N, K, 3, 3)], dim=1)
+    cuboid_size = torch.cat([scene.object_size[None], scene.static_size], dim=0)
+    return render_silhouettes(
+        scene.hand_pos,
+        scene.hand_rot,
+        cuboid_pos,
+        cuboid_rot,
+        cuboid_size,
+        scene.camera_height,
+        scene.camera_elevation,
+        intrinsics,
+        sigma=sigma,
+    )

@@ -1,0 +1,331 @@
+"""Stage (a) of the optimisation: a physics-free fit of per-frame poses to the masks.
+
+Per frame it places the hand and the object freely (no dynamics), together with the object
+size, the static cuboids and the camera's height and elevation, minimising the perceptual
+dIoU, the hand-tip-to-object distance in contact frames and a smoothness prior. The result
+is a first camera and first trajectories for the physics stage (:mod:`warpskill.optimize`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from warpskill.contract.camera import Intrinsics
+from warpskill.engine.distances import (
+    box_signed_distance,
+    lowest_corner_height,
+    support_height,
+)
+from warpskill.engine.primitives import HAND_RADIUS
+from warpskill.engine.projection import camera_rotation
+from warpskill.engine.rotations import rotation_from_6d, rotation_to_6d, yaw_rotation
+from warpskill.optimizer.losses import MaskTargets
+from warpskill.optimizer.scene import (
+    SceneTrajectories,
+    perceptual_loss,
+    positive,
+    positive_inverse,
+    static_poses,
+)
+from warpskill.optimizer.weights import LossWeights
+
+MIN_OBJECT_SIZE = 0.01  # [m]
+MIN_STATIC_SIZE = 0.02  # [m]
+INITIAL_CAMERA_HEIGHT = 0.45  # [m]
+INITIAL_CAMERA_ELEVATION = 0.6  # [rad]
+FREE_MARGIN_FRAMES = 2  # frames next to a contact frame that the resting priors ignore
+
+
+class _MaskGeometry:
+    """Per-frame 2D statistics of target masks (N, h, w) in [0, 1]: visibility, centroid, box."""
+
+    def __init__(self, masks: np.ndarray):
+        hard = masks > 0.5
+        self.visible = hard.reshape(len(masks), -1).any(1)
+        h, w = masks.shape[1:]
+        self.centroid = np.full((len(masks), 2), np.nan)
+        self.box = np.full((len(masks), 4), np.nan)
+        for k in np.flatnonzero(self.visible):
+            rows, cols = np.nonzero(hard[k])
+            self.centroid[k] = cols.mean() + 0.5, rows.mean() + 0.5
+            self.box[k] = cols.min(), rows.min(), cols.max() + 1.0, rows.max() + 1.0
+        self._hard = hard
+
+    def pixels(self, k: int) -> np.ndarray:
+        """(M, 2) pixel centres (u, v) of frame k's mask."""
+        rows, cols = np.nonzero(self._hard[k])
+        return np.stack([cols + 0.5, rows + 0.5], -1)
+
+
+def _fill_missing(values: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Copy each invalid frame's value from the nearest valid frame."""
+    idx = np.flatnonzero(valid)
+    if len(idx) == 0:
+        raise ValueError("no valid frame to initialise from")
+    nearest = idx[np.abs(np.arange(len(values))[:, None] - idx[None]).argmin(1)]
+    return values[nearest]
+
+
+def _rays(pixels: np.ndarray, K: np.ndarray, R_wc: np.ndarray) -> np.ndarray:
+    """World directions (M, 3) of the camera rays through pixels (M, 2); unit depth."""
+    d = np.stack([(pixels[:, 0] - K[0, 2]) / K[0, 0], (pixels[:, 1] - K[1, 2]) / K[1, 1], np.ones(len(pixels))], -1)
+    return d @ R_wc.T
+
+
+def _band_width(pixels: np.ndarray) -> float:
+    """Width [px] of a band of pixels (M, 2) across its main axis: sqrt(12) x its minor std."""
+    return float(np.sqrt(12.0 * max(np.linalg.eigvalsh(np.cov(pixels.T))[0], 1.0 / 12.0)))
+
+
+def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, fx: float) -> float | None:
+    """Median camera depth [m] of the hand tip, from the mask's width near the tip.
+
+    The hand is a cylinder of known radius R, so a stretch of mask w [px] wide lies at
+    depth 2 R fx / w. The arm widens towards the camera: only the pixels within a few
+    widths of the tip (the hand pixel nearest ``targets_of`` (N, 2), the object's centroid)
+    are measured.
+    """
+    depths = []
+    for k in np.flatnonzero(geom.visible):
+        pixels = geom.pixels(k)
+        if len(pixels) < 6:
+            continue
+        tip = pixels[np.argmin(((pixels - targets_of[k]) ** 2).sum(1))]
+        near = pixels[((pixels - tip) ** 2).sum(1) < (3.0 * _band_width(pixels)) ** 2]
+        if len(near) >= 6:
+            depths.append(2.0 * HAND_RADIUS * fx / _band_width(near))
+    return float(np.median(depths)) if depths else None
+
+
+OBJECT_DEPTH_HYPOTHESES = ("resting depth", "on the ground")
+
+
+def initial_guess(
+    targets: np.ndarray,
+    contact: np.ndarray,
+    intrinsics: Intrinsics,
+    num_static: int,
+    *,
+    object_depth: str = "resting depth",
+) -> SceneTrajectories:
+    """A rough scene read off the masks' geometry, before any optimisation.
+
+    The hand's apparent width (its radius is known) gives the scene's depth; with the
+    prior elevation, the object's lowest image row at that depth gives the camera height.
+    Cuboids then stand upright on the ground below their mask's bottom edge, sized from
+    the mask at that depth; the hand tip is at the hand pixel nearest the object, at the
+    object's depth, its axis pointing from there towards the rest of the hand mask and the
+    camera.
+
+    Where the object is after it was first seen is ambiguous from one frame's mask (the
+    paper's Fig. 1: on top of a box, or behind it on the ground), so ``object_depth``
+    names the hypothesis: it keeps its ``"resting depth"``, or stands ``"on the ground"``
+    below its mask's bottom edge in every frame.
+
+    Args:
+        targets: (N, 2 + K, h, w) masks at the working resolution.
+        contact: (N,) bool.
+        intrinsics: working-resolution intrinsics.
+        num_static: K.
+        object_depth: one of :data:`OBJECT_DEPTH_HYPOTHESES`.
+    """
+    if object_depth not in OBJECT_DEPTH_HYPOTHESES:
+        raise ValueError(f"object_depth must be one of {OBJECT_DEPTH_HYPOTHESES}, not {object_depth!r}")
+    N = targets.shape[0]
+    K = intrinsics.K
+    e0 = INITIAL_CAMERA_ELEVATION
+    R_wc = camera_rotation(torch.tensor(e0, dtype=torch.float64)).numpy()
+    hand_geom = _MaskGeometry(targets[:, 0])
+    object_geom = _MaskGeometry(targets[:, 1])
+
+    object_centroid = _fill_missing(object_geom.centroid, object_geom.visible)
+    depth = _hand_depth(hand_geom, object_centroid, K[0, 0])
+    h0 = INITIAL_CAMERA_HEIGHT
+    if depth is not None:
+        bottom_row = np.nanmedian(object_geom.box[:, 3])
+        ray = np.array([0.0, (bottom_row - K[1, 2]) / K[1, 1], 1.0])
+        h0 = float(np.clip(depth * (ray @ R_wc.T) @ np.array([0.0, 0.0, -1.0]), 0.15, 1.5))
+    centre = np.array([0.0, 0.0, h0])
+
+    def ground_point(pixel: np.ndarray) -> tuple[np.ndarray, float]:
+        ray = _rays(pixel[None], K, R_wc)[0]
+        t = -h0 / ray[2] if ray[2] < -1e-3 else 1.0
+        t = min(t, 3.0)
+        return centre + t * ray, t  # t is the camera depth (rays have unit z in camera axes)
+
+    def cuboid_from_masks(geom: _MaskGeometry, on_ground: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per-frame centres, a size and visibility of an upright cuboid seen in ``geom``.
+
+        Where it is first seen the cuboid stands on the ground below its mask's bottom
+        edge; later it stands there again (``on_ground``) or keeps that camera depth.
+        """
+        first = np.flatnonzero(geom.visible)[0]
+        u0, v0, u1, v1 = geom.box[first]
+        _, rest_depth = ground_point(np.array([0.5 * (u0 + u1), v1]))
+        pos = np.zeros((N, 3))
+        sizes = []
+        for k in np.flatnonzero(geom.visible):
+            u0, v0, u1, v1 = geom.box[k]
+            bottom_pixel = np.array([0.5 * (u0 + u1), v1])
+            bottom, depth = ground_point(bottom_pixel)
+            if not on_ground:
+                depth = rest_depth
+                bottom = centre + depth * _rays(bottom_pixel[None], K, R_wc)[0]
+            width = (u1 - u0) * depth / K[0, 0]
+            height = np.clip((v1 - v0) * depth / K[1, 1] * 0.6, 0.03, 0.4)
+            sizes.append([width, width, height])
+            pos[k] = bottom + np.array([0.0, 0.5 * width, 0.5 * height])
+        size = np.clip(np.median(np.array(sizes), 0), 0.03, 0.5)
+        return _fill_missing(pos, geom.visible), size, np.asarray(geom.visible)
+
+    object_pos, object_size, _ = cuboid_from_masks(object_geom, object_depth == "on the ground")
+    static_pos, static_size = [], []
+    for j in range(num_static):
+        pos, size, visible = cuboid_from_masks(_MaskGeometry(targets[:, 2 + j]), True)
+        static_pos.append(pos[np.flatnonzero(visible)[0]])
+        static_size.append(size)
+
+    hand_pos = np.zeros((N, 3))
+    hand_axis = np.zeros((N, 3))
+    for k in np.flatnonzero(hand_geom.visible):
+        pixels = hand_geom.pixels(k)
+        tip = pixels[np.argmin(((pixels - object_centroid[k]) ** 2).sum(1))]
+        tip_depth = ((object_pos[k] - centre) @ R_wc)[2]
+        hand_pos[k] = centre + tip_depth * _rays(tip[None], K, R_wc)[0]
+        arm = hand_geom.centroid[k] - tip
+        arm = arm / np.linalg.norm(arm) if np.linalg.norm(arm) > 1e-6 else np.array([0.0, 1.0])
+        hand_axis[k] = R_wc @ np.array([arm[0], arm[1], -0.5])
+    hand_pos = _fill_missing(hand_pos, hand_geom.visible)
+    hand_axis = _fill_missing(hand_axis, hand_geom.visible)
+    hand_rot = _frames_from_axes(hand_axis)
+
+    f = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
+    static_size_t = f(np.reshape(static_size, (num_static, 3)))
+    static_xy = f(np.reshape(static_pos, (num_static, 3))[:, :2])
+    s_pos, s_rot = static_poses(static_xy, torch.zeros(num_static), static_size_t)
+    return SceneTrajectories(
+        hand_pos=f(hand_pos),
+        hand_rot=f(hand_rot),
+        object_pos=f(object_pos),
+        object_rot=torch.eye(3).expand(N, 3, 3).clone(),
+        object_size=f(object_size),
+        static_pos=s_pos,
+        static_rot=s_rot,
+        static_size=static_size_t,
+        camera_height=torch.tensor(h0),
+        camera_elevation=torch.tensor(e0),
+    )
+
+
+def _frames_from_axes(axes: np.ndarray) -> np.ndarray:
+    """Rotations (N, 3, 3) whose local z is each unit-normalised axis (N, 3)."""
+    z = axes / np.linalg.norm(axes, axis=1, keepdims=True)
+    helper = np.where(np.abs(z[:, 2:3]) < 0.9, np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]]))
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    return np.stack([x, np.cross(z, x), z], -1)
+
+
+class InitialParameters(torch.nn.Module):
+    """Free per-frame parameters of stage (a), initialised from a :class:`SceneTrajectories`.
+
+    The object stays upright (it turns about z only): an upright box shows as much of its
+    top face as the camera's elevation dictates, which makes the elevation observable.
+    A global scale multiplies every position, size and the camera height: scaling the
+    whole scene about the camera changes only the hand's apparent width (its size is
+    fixed), a direction too flat for per-frame parameters to follow one by one.
+    """
+
+    def __init__(self, guess: SceneTrajectories):
+        super().__init__()
+        P = torch.nn.Parameter
+        self.hand_pos = P(guess.hand_pos.clone())
+        self.hand_rot6 = P(rotation_to_6d(guess.hand_rot))
+        self.object_pos = P(guess.object_pos.clone())
+        self.object_yaw = P(torch.atan2(guess.object_rot[:, 1, 0], guess.object_rot[:, 0, 0]))
+        self.object_size_raw = P(positive_inverse(guess.object_size, MIN_OBJECT_SIZE))
+        self.static_xy = P(guess.static_pos[:, :2].clone())
+        self.static_yaw = P(torch.zeros(guess.static_pos.shape[0]))
+        self.static_size_raw = P(positive_inverse(guess.static_size, MIN_STATIC_SIZE))
+        self.camera_height_raw = P(positive_inverse(guess.camera_height, 0.05))
+        self.camera_elevation = P(guess.camera_elevation.clone())
+        self.log_scale = P(torch.zeros(()))
+
+    def scene(self) -> SceneTrajectories:
+        """The per-frame scene these parameters describe."""
+        scale = self.log_scale.exp()
+        static_size = scale * positive(self.static_size_raw, MIN_STATIC_SIZE)
+        static_pos, static_rot = static_poses(scale * self.static_xy, self.static_yaw, static_size)
+        return SceneTrajectories(
+            hand_pos=scale * self.hand_pos,
+            hand_rot=rotation_from_6d(self.hand_rot6),
+            object_pos=scale * self.object_pos,
+            object_rot=yaw_rotation(self.object_yaw),
+            object_size=scale * positive(self.object_size_raw, MIN_OBJECT_SIZE),
+            static_pos=static_pos,
+            static_rot=static_rot,
+            static_size=static_size,
+            camera_height=scale * positive(self.camera_height_raw, 0.05),
+            camera_elevation=self.camera_elevation,
+        )
+
+
+def _far_from_contact(contact: torch.Tensor, margin: int) -> torch.Tensor:
+    """(N,) 1 in frames more than ``margin`` frames away from any contact frame, else 0.
+
+    Contact signals are off by a frame or two around the onset and release; the resting
+    priors trust only the frames that are clearly free.
+    """
+    near = torch.nn.functional.max_pool1d(contact[None, None], 2 * margin + 1, stride=1, padding=margin)[0, 0]
+    return 1.0 - near
+
+
+def initial_objective(
+    scene: SceneTrajectories,
+    rendered: torch.Tensor,
+    targets: MaskTargets,
+    contact: torch.Tensor,
+    fps: float,
+    weights: LossWeights,
+) -> dict[str, torch.Tensor]:
+    """Stage (a) loss terms: perceptual, contact distance, smoothness and resting priors.
+
+    Args:
+        scene: the per-frame scene.
+        rendered: (N, 2 + K, h, w) its soft silhouettes at the working resolution.
+        targets: the masks at the working resolution.
+        contact: (N,) contact signal in {0, 1}.
+        fps: frame rate [1/s].
+        weights: loss weights.
+    """
+    tip_distance = box_signed_distance(scene.hand_pos, scene.object_pos, scene.object_rot, scene.object_size)
+    c = contact.to(tip_distance.dtype)
+
+    def acceleration(x):  # (N, D) -> mean squared second difference [per s^2]
+        return ((x[2:] - 2 * x[1:-1] + x[:-2]) * fps**2).square().sum(-1).mean() if len(x) > 2 else x.sum() * 0
+
+    rot6 = rotation_to_6d
+    free = _far_from_contact(c, FREE_MARGIN_FRAMES)
+    free_steps = free[1:] * free[:-1]
+    moved = ((scene.object_pos[1:] - scene.object_pos[:-1]) * fps).square().sum(-1)
+    low = lowest_corner_height(scene.object_pos, scene.object_rot, scene.object_size)
+    below = (-low).clamp_min(0.0).square().mean() + (-scene.hand_pos[:, 2]).clamp_min(0.0).square().mean()
+    support = support_height(scene.object_pos, scene.static_pos, scene.static_rot, scene.static_size)
+    return {
+        "perceptual": perceptual_loss(rendered, targets, weights),
+        "contact distance": weights.contact_distance
+        * (c * (tip_distance + weights.grasp_margin).clamp_min(0.0) ** 2).mean(),
+        "smoothness": weights.smoothness
+        * (
+            acceleration(scene.hand_pos)
+            + acceleration(scene.object_pos)
+            + 0.01 * (acceleration(rot6(scene.hand_rot)) + acceleration(rot6(scene.object_rot)))
+        ),
+        # The object does not move while the hand does not touch it, and rests on what is
+        # under it (the ground or a static cuboid's top) ...
+        "resting": weights.resting * (free_steps * moved).mean()
+        + weights.penetration * (free * (low - support).square()).mean(),
+        # ... and nothing goes through the ground.
+        "penetration": weights.penetration * below,
+    }

@@ -1,0 +1,288 @@
+"""Stage (b) parameters: a scene whose trajectories come from the physics engine.
+
+The optimised quantities are the paper's: the hand's initial pose and grasp signal and its
+velocity spline (v, w, g' at the knots), the object's initial pose and size, the static
+cuboids' ground position, yaw and size, and the camera's height and elevation. Every
+trajectory is a rollout of :func:`warpskill.engine.simulation.simulate`, preceded by a pre-roll and
+followed by a post-roll in which the hand holds still, so the objective can ask the object
+to be at rest before and after the video.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from warpskill.engine.distances import box_signed_distance
+from warpskill.engine.rotations import rotation_from_6d, rotation_log, rotation_to_6d
+from warpskill.engine.simulation import (
+    PhysicsConfig,
+    Rollout,
+    simulate,
+    substeps_per_frame,
+)
+from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.losses import MaskTargets
+from warpskill.optimizer.scene import (
+    SceneTrajectories,
+    perceptual_loss,
+    positive,
+    positive_inverse,
+    static_poses,
+)
+from warpskill.optimizer.spline import natural_cubic_basis
+from warpskill.optimizer.stage_a import MIN_OBJECT_SIZE, MIN_STATIC_SIZE
+from warpskill.optimizer.weights import LossWeights
+
+CONTACT_FIT_WEIGHT = 50.0  # contact frames' weight in the hand spline's least-squares fit
+MAX_ONSET_SHIFT = 0.02  # [m] largest shift of the hand path that puts the tip inside at the onset
+
+
+@dataclass
+class PhysicalRollout:
+    """A rollout split into the video's frames and the still frames around it.
+
+    Attributes:
+        scene: per-frame scene over the video's N frames.
+        rollout: the engine's per-frame output over the video's N frames.
+        still_velocity: (P,) squared object speed (linear [m/s] plus angular [rad/s]) in
+            the pre- and post-roll frames.
+        hand_speed: (N,) squared hand speed from the spline at the video's frames.
+    """
+
+    scene: SceneTrajectories
+    rollout: Rollout
+    still_velocity: torch.Tensor
+    hand_speed: torch.Tensor
+
+
+class PhysicalScene(torch.nn.Module):
+    """Stage (b) parameters, initialised from stage (a)'s per-frame fit.
+
+    Args:
+        fit: per-frame trajectories of stage (a) over N frames.
+        contact: (N,) bool contact signal.
+        fps: frame rate [1/s].
+        knots_per_second: density of the hand's velocity spline.
+        pre_roll, post_roll: still time [s] simulated before and after the video.
+        grasp_level: |g| [m] the grasp signal starts at, positive in contact frames.
+        physics: engine constants.
+    """
+
+    def __init__(
+        self,
+        fit: SceneTrajectories,
+        contact: np.ndarray,
+        fps: float,
+        *,
+        knots_per_second: float,
+        pre_roll: float,
+        post_roll: float,
+        grasp_level: float,
+        physics: PhysicsConfig,
+    ):
+        super().__init__()
+        self.physics = physics
+        self.fps = float(fps)
+        self.num_frames = N = fit.hand_pos.shape[0]
+        self.steps_per_frame = substeps_per_frame(fps, physics)
+        self.pre_frames = math.ceil(pre_roll * fps)
+        self.post_frames = math.ceil(post_roll * fps)
+        duration = (N - 1) / fps
+        num_knots = max(4, round(duration * knots_per_second) + 1)
+        dt = 1.0 / (fps * self.steps_per_frame)
+        step_times = np.arange((N - 1) * self.steps_per_frame) * dt
+        basis = natural_cubic_basis(num_knots, duration, step_times)  # (S, knots)
+        self.register_buffer("step_basis", torch.as_tensor(basis, dtype=torch.float32))
+        frame_times = np.arange(N) / fps
+        self.register_buffer(
+            "frame_basis", torch.as_tensor(natural_cubic_basis(num_knots, duration, frame_times), dtype=torch.float32)
+        )
+
+        P = torch.nn.Parameter
+        fit = fit.detached("cpu")
+        grasp_target = torch.where(torch.as_tensor(contact, dtype=torch.bool), grasp_level, -grasp_level)
+        self.hand_rot6 = P(rotation_to_6d(fit.hand_rot[0]))
+        self.grasp0 = P(grasp_target[0].reshape(()).clone())
+        control = self._fit_control(fit, contact, grasp_target, basis, dt)
+        self.control = P(control)
+        self.hand_pos0 = P(fit.hand_pos[0] - self._grasp_onset_shift(fit, contact, control, basis, dt, grasp_level))
+        self.object_pos0 = P(fit.object_pos[0].clone())
+        self.object_rot6 = P(rotation_to_6d(fit.object_rot[0]))
+        self.object_size_raw = P(positive_inverse(fit.object_size, MIN_OBJECT_SIZE))
+        self.static_xy = P(fit.static_pos[:, :2].clone())
+        self.static_yaw = P(torch.atan2(fit.static_rot[:, 1, 0], fit.static_rot[:, 0, 0]))
+        self.static_size_raw = P(positive_inverse(fit.static_size, MIN_STATIC_SIZE))
+        self.camera_height_raw = P(positive_inverse(fit.camera_height, 0.05))
+        self.camera_elevation = P(fit.camera_elevation.clone())
+
+    def _fit_control(
+        self, fit: SceneTrajectories, contact: np.ndarray, grasp_target: torch.Tensor, basis: np.ndarray, dt: float
+    ) -> torch.Tensor:
+        """Knot velocities (knots, 7) that reproduce stage (a)'s hand motion and the contact.
+
+        Positions and the grasp signal are integrals of the spline, linear in the knots, so
+        they are fitted in least squares on their integrated basis; contact frames weigh
+        more, because the tip must be inside the object there for the grasp to engage.
+        Angular velocities are fitted to the frame-to-frame rotations.
+        """
+        spf = self.steps_per_frame
+        N = self.num_frames
+        cumulative = np.concatenate([np.zeros((1, basis.shape[1])), np.cumsum(basis, 0) * dt])[::spf]  # (N, knots)
+        ridge = 1e-6 * np.eye(basis.shape[1])
+        weight = np.sqrt(1.0 + CONTACT_FIT_WEIGHT * np.asarray(contact, dtype=float))[:, None]
+
+        def solve(design: np.ndarray, rhs: np.ndarray, w: np.ndarray | float = 1.0) -> np.ndarray:
+            design, rhs = w * design, w * rhs
+            return np.linalg.solve(design.T @ design + ridge, design.T @ rhs)
+
+        pos = fit.hand_pos.double().numpy()
+        linear = solve(cumulative, pos - pos[0], weight)
+        grasp = grasp_target.double().numpy()
+        grasp_rate = solve(cumulative, (grasp - grasp[0])[:, None])
+        R = fit.hand_rot.double()
+        omega = rotation_log(R[1:] @ R[:-1].transpose(-1, -2)).numpy() * self.fps  # (N - 1, 3)
+        mid_times = (np.arange(N - 1) + 0.5) / self.fps
+        mid_basis = natural_cubic_basis(basis.shape[1], (N - 1) / self.fps, mid_times)
+        angular = solve(mid_basis, omega)
+        return torch.as_tensor(np.concatenate([linear, angular, grasp_rate], 1), dtype=torch.float32)
+
+    def _grasp_onset_shift(
+        self, fit: SceneTrajectories, contact: np.ndarray, control: torch.Tensor, basis: np.ndarray, dt: float,
+        depth: float,
+    ) -> torch.Tensor:
+        """Shift (3,) [m] of the hand's whole path that puts its simulated tip ``depth`` inside
+        the object at the first contact frame.
+
+        The spline only approximates stage (a)'s hand path, and stage (a) only asks for the
+        tip to be inside on average; millimetres decide whether the grasp switch saturates
+        (a switch below 1 carries the object only partly, and it slips out). The tip moves
+        along the normal of the object's face nearest to it; once the grasp closes, the rigid
+        carry keeps the depth.
+        """
+        onset = np.flatnonzero(contact)
+        if len(onset) == 0:
+            return torch.zeros(3)
+        steps = int(onset[0]) * self.steps_per_frame
+        tip = fit.hand_pos[0] + dt * torch.as_tensor(basis[:steps].sum(0), dtype=torch.float32) @ control[:, :3]
+        pos, rot, size = fit.object_pos[0], fit.object_rot[0], fit.object_size
+        local = rot.T @ (tip - pos)
+        axis = int(torch.argmax(local.abs() - 0.5 * size))
+        normal = rot[:, axis] * torch.sign(local[axis])
+        depth = min(depth, 0.25 * float(size.min()))
+        distance = box_signed_distance(tip, pos, rot, size)
+        # A correction for the spline's error, not a relocation: far from the object, stage (a)
+        # itself disagrees with the contact signal, and moving the whole path would undo its fit.
+        return (distance + depth).clamp(0.0, MAX_ONSET_SHIFT) * normal
+
+    def cuboids(self) -> tuple[torch.Tensor, ...]:
+        """Object size (3,), static centres (K, 3), rotations (K, 3, 3) and sizes (K, 3)."""
+        static_size = positive(self.static_size_raw, MIN_STATIC_SIZE)
+        static_pos, static_rot = static_poses(self.static_xy, self.static_yaw, static_size)
+        return positive(self.object_size_raw, MIN_OBJECT_SIZE), static_pos, static_rot, static_size
+
+    def simulation_inputs(self) -> dict:
+        """Keyword arguments of :func:`warpskill.engine.simulation.simulate` for this scene (B = 1):
+        pre-roll, the video, post-roll."""
+        object_size, static_pos, static_rot, static_size = self.cuboids()
+        spf = self.steps_per_frame
+        main_velocity = self.step_basis @ self.control  # (S, 7)
+        still = lambda frames: main_velocity.new_zeros(frames * spf, 7)  # noqa: E731
+        hand_velocity = torch.cat([still(self.pre_frames), main_velocity, still(self.post_frames)])
+        return dict(
+            hand_pos0=self.hand_pos0[None],
+            hand_rot0=rotation_from_6d(self.hand_rot6)[None],
+            grasp0=self.grasp0.reshape(1),
+            hand_vel=hand_velocity[None],
+            object_pos0=self.object_pos0[None],
+            object_rot0=rotation_from_6d(self.object_rot6)[None],
+            object_size=object_size[None],
+            static_pos=static_pos[None],
+            static_rot=static_rot[None],
+            static_size=static_size[None],
+            steps_per_frame=spf,
+            fps=self.fps,
+            config=self.physics,
+        )
+
+    def assemble(self, out: Rollout) -> PhysicalRollout:
+        """This scene's :class:`PhysicalRollout` from the rollout (B = 1) of its :meth:`simulation_inputs`."""
+        object_size, static_pos, static_rot, static_size = self.cuboids()
+        video = slice(self.pre_frames, self.pre_frames + self.num_frames)
+        rollout = Rollout(**{name: value[0, video] for name, value in vars(out).items()})
+        speed = out.object_vel[0].square().sum(-1) + out.object_ang_vel[0].square().sum(-1)
+        still_velocity = torch.cat([speed[: self.pre_frames + 1], speed[self.pre_frames + self.num_frames :]])
+        frame_velocity = self.frame_basis @ self.control
+        scene = SceneTrajectories(
+            hand_pos=rollout.hand_pos,
+            hand_rot=rollout.hand_rot,
+            object_pos=rollout.object_pos,
+            object_rot=rollout.object_rot,
+            object_size=object_size,
+            static_pos=static_pos,
+            static_rot=static_rot,
+            static_size=static_size,
+            camera_height=positive(self.camera_height_raw, 0.05),
+            camera_elevation=self.camera_elevation,
+        )
+        return PhysicalRollout(scene, rollout, still_velocity, frame_velocity[:, :6].square().sum(-1))
+
+    def forward(self, simulate=simulate) -> PhysicalRollout:
+        """Simulate the scene (pre-roll, the video, post-roll) with ``simulate`` (default: the Warp engine)."""
+        return self.assemble(simulate(**self.simulation_inputs()))
+
+
+def make_physical_scene(fit: SceneTrajectories, contact_signal: np.ndarray, fps: float, config: OptimizeConfig) -> PhysicalScene:
+    """Stage (b)'s parameters started from the per-frame scene ``fit`` (on the CPU)."""
+    return PhysicalScene(
+        fit,
+        contact_signal,
+        fps,
+        knots_per_second=config.knots_per_second,
+        pre_roll=config.pre_roll,
+        post_roll=config.post_roll,
+        grasp_level=2.0 * config.weights.grasp_margin,
+        physics=config.physics,
+    )
+
+
+def physical_objective(
+    result: PhysicalRollout,
+    rendered: torch.Tensor,
+    targets: MaskTargets,
+    contact: torch.Tensor,
+    object_visible: torch.Tensor,
+    weights: LossWeights,
+) -> dict[str, torch.Tensor]:
+    """Stage (b) loss terms: perceptual, velocity regularisation, contact, stability.
+
+    Args:
+        result: the simulated scene.
+        rendered: (N, 2 + K, h, w) its soft silhouettes at the working resolution.
+        targets: (N, 2 + K, h, w) masks at the working resolution.
+        contact: (N,) contact signal in {0, 1}.
+        object_visible: (N,) 1 where the object's mask is not empty.
+        weights: loss weights.
+
+    Returns:
+        Named weighted terms; the loss is their sum.
+    """
+    rollout = result.rollout
+    object_speed = rollout.object_vel.square().sum(-1) + rollout.object_ang_vel.square().sum(-1)
+    margin = weights.grasp_margin
+    return {
+        "perceptual": perceptual_loss(rendered, targets, weights),
+        "hand velocity": weights.hand_velocity * result.hand_speed.mean(),
+        "hidden object velocity": weights.invisible_object_velocity * ((1 - object_visible) * object_speed).mean(),
+        "contact distance": weights.contact_distance
+        * (contact * (rollout.tip_distance + margin).clamp_min(0.0) ** 2).mean(),
+        "grasp": weights.grasp
+        * (
+            (contact * (margin - rollout.grasp).clamp_min(0.0) ** 2).mean()
+            + ((1 - contact) * (rollout.grasp + margin).clamp_min(0.0) ** 2).mean()
+        ),
+        "stability": weights.stability * result.still_velocity.mean(),
+    }
