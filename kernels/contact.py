@@ -17,7 +17,7 @@ from typing import Any
 
 import warp as wp
 
-from warpskill.kernels.geometry import box_sdf, static_box_sdf
+from .geometry import box_sdf, static_box_sdf
 
 NUM_SAMPLE_POINTS = 62
 

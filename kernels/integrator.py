@@ -25,8 +25,8 @@ from typing import Any
 
 import warp as wp
 
-from warpskill.kernels.contact import contact_impulses_func, tip_distance
-from warpskill.kernels.geometry import exp_so3, orthonormalize
+from .contact import contact_impulses_func, tip_distance
+from .geometry import exp_so3, orthonormalize
 
 
 @wp.func

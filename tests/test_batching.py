@@ -59,9 +59,10 @@ def test_simulate_many_pads_shorter_scenes_without_changing_them():
             **{k: torch.as_tensor(demo.truth[k], dtype=torch.float32) for k in SceneTrajectories.__dataclass_fields__})
         scenes.append(make_physical_scene(fit, demo.contact, demo.fps, config))
     inputs = [scene.simulation_inputs() for scene in scenes]
-    batched = simulate_many(inputs)
-    for given, rollout in zip(inputs, batched):
-        alone = simulate(**given)
+    options = [scene.simulation_options() for scene in scenes]
+    batched = simulate_many(inputs, options)
+    for given, option, rollout in zip(inputs, options, batched):
+        alone = simulate(given, **option)
         for name, value in vars(alone).items():
             assert getattr(rollout, name).shape == value.shape, name
             np.testing.assert_allclose(getattr(rollout, name).detach().numpy(), value.detach().numpy(), atol=1e-6,

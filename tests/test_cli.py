@@ -279,3 +279,39 @@ def test_optimize_refuses_two_demonstrations_of_one_name(demo_file, tmp_path, ca
     shutil.copy(demo_file, twin)
     assert main(["optimize", str(demo_file), str(twin), "-o", str(tmp_path / "out")]) == 1
     assert "different names" in capsys.readouterr().err
+
+
+def test_optimize_workers_without_ray_says_how_to_install_it_and_runs_serially(demo_file, tmp_path, capsys,
+                                                                              monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "ray", None)  # as if not installed: find_spec("ray") is None
+    out = tmp_path / "out"
+    status = main(["optimize", str(demo_file), "-o", str(out), "--workers", "2", "--iterations", "2", "--quiet",
+                   "--no-pictures"])
+    assert status == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[0] == ('--workers needs Ray, which is not installed (pip install -e ".[cluster]"): '
+                          "optimising serially")
+    assert (out / "reconstruction.npz").is_file()  # the serial layout, as without --workers
+
+
+def test_optimize_on_ray_workers_each_into_its_folder_and_a_rerun_skips_them(demo_file, tmp_path, capsys):
+    pytest.importorskip("ray")
+    other = tmp_path / "push.npz"
+    make_demonstration("push_left_to_right", seed=1, **SMALL_DEMO).save(other)
+    broken = tmp_path / "broken.npz"
+    broken.write_bytes(b"not an archive")
+    out = tmp_path / "out"
+    argv = ["optimize", str(demo_file), str(other), str(broken), "-o", str(out), "--workers", "1",
+            "--iterations", "2", "--quiet", "--no-pictures"]
+    assert main(argv) == 1  # one demonstration failed: the others are done
+    printed = capsys.readouterr().out
+    for name, action in ((demo_file.stem, "pick_up"), ("push", "push_left_to_right")):
+        assert str(Reconstruction.load(out / name / "reconstruction.npz").action) == action
+        assert (out / name / "checkpoint.pt").is_file()
+        _evaluation_line(printed, action)
+    assert "broken: failed (DemonstrationError" in printed and "2 done, 1 failed" in printed
+    assert main(argv[:3] + argv[4:]) == 0  # without the broken one: both done before, nothing runs
+    printed = capsys.readouterr().out
+    assert f"{demo_file.stem}: done before" in printed and "push: done before" in printed

@@ -14,10 +14,12 @@ frame right after the release, where Warp's sigmoid is not (bound 50 mm/s).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
 import torch
 
+from warpskill.engine.records import SceneInputs
 from warpskill.engine.simulation import PhysicsConfig, simulate
 
 pytest.importorskip("torchdiffeq")  # the optional extra "baselines"
@@ -38,36 +40,37 @@ def one_thread():
     torch.set_num_threads(threads)
 
 
-def put_onto(dtype=torch.float64) -> dict:
+def put_onto(dtype=torch.float64) -> tuple[SceneInputs, dict]:
     return scripted_inputs(scripted_scene("put_onto", duration=DURATION), FPS, DURATION, dtype=dtype)
 
 
 @pytest.fixture(scope="module")
 def put_onto_rollouts():
-    inputs = put_onto()
+    inputs, options = put_onto()
     events: list = []
-    return inputs, simulate(**inputs), simulate_dopri5(**inputs, events=events), events[0]
+    return inputs, options, simulate(inputs, **options), simulate_dopri5(inputs, **options, events=events), events[0]
 
 
-def free_fall_inputs(frames: int = 7) -> dict:
+def free_fall_inputs(frames: int = 7) -> tuple[SceneInputs, dict]:
     """A cuboid 2 m up, the hand 1 m away with its grasp open: nothing but gravity and damping."""
-    inputs = scripted_inputs(scripted_scene("put_onto", duration=1.0), FPS, 1.0, dtype=torch.float64)
-    steps = (frames - 1) * inputs["steps_per_frame"]
-    return {
-        **inputs,
-        "hand_pos0": torch.tensor([[1.0, 0.0, 1.0]], dtype=torch.float64),
-        "grasp0": torch.tensor([-0.02], dtype=torch.float64),
-        "hand_vel": torch.zeros(1, steps, 7, dtype=torch.float64),
-        "object_pos0": torch.tensor([[0.0, 0.0, 2.0]], dtype=torch.float64),
-        "static_pos": inputs["static_pos"][:, :0],
-        "static_rot": inputs["static_rot"][:, :0],
-        "static_size": inputs["static_size"][:, :0],
-    }
+    inputs, options = scripted_inputs(scripted_scene("put_onto", duration=1.0), FPS, 1.0, dtype=torch.float64)
+    steps = (frames - 1) * options["steps_per_frame"]
+    fall = replace(
+        inputs,
+        hand_pos0=torch.tensor([[1.0, 0.0, 1.0]], dtype=torch.float64),
+        grasp0=torch.tensor([-0.02], dtype=torch.float64),
+        hand_vel=torch.zeros(1, steps, 7, dtype=torch.float64),
+        object_pos0=torch.tensor([[0.0, 0.0, 2.0]], dtype=torch.float64),
+        static_pos=inputs.static_pos[:, :0],
+        static_rot=inputs.static_rot[:, :0],
+        static_size=inputs.static_size[:, :0],
+    )
+    return fall, options
 
 
 def test_free_fall_matches_the_analytic_solution_and_warp():
-    inputs = free_fall_inputs()
-    out = simulate_dopri5(**inputs)
+    inputs, options = free_fall_inputs()
+    out = simulate_dopri5(inputs, **options)
     c, g = PhysicsConfig().free_damping, PhysicsConfig().gravity
     t = torch.arange(out.object_pos.shape[1], dtype=torch.float64) / FPS
     z = 2.0 - g / c * (t - (1.0 - torch.exp(-c * t)) / c)
@@ -75,14 +78,14 @@ def test_free_fall_matches_the_analytic_solution_and_warp():
     assert (out.object_pos[0, :, 2] - z).abs().max() < 1e-7
     assert (out.object_vel[0, :, 2] - vz).abs().max() < 1e-7
     assert (out.grasped == 0).all()
-    warp = simulate(**inputs)
-    dt = 1.0 / (FPS * inputs["steps_per_frame"])
+    warp = simulate(inputs, **options)
+    dt = 1.0 / (FPS * options["steps_per_frame"])
     lag = (warp.object_pos[0, :, 2] - out.object_pos[0, :, 2]).abs()
     assert (lag <= g * dt * t / 2 * 1.01 + 1e-9).all()  # Euler's first-order error, no more
 
 
 def test_put_onto_agrees_with_warp(put_onto_rollouts):
-    _, warp, ours, events = put_onto_rollouts
+    _, _, warp, ours, events = put_onto_rollouts
     assert len(events) == 2, "grasp and release"
     for name in ("hand_pos", "hand_rot", "grasp"):
         assert (getattr(warp, name) - getattr(ours, name)).abs().max() < 1e-9, name
@@ -102,9 +105,9 @@ def test_put_onto_agrees_with_warp(put_onto_rollouts):
 
 
 def test_events_are_where_the_grasp_signal_crosses_zero(put_onto_rollouts):
-    inputs, _, _, events = put_onto_rollouts
-    dt = 1.0 / (FPS * inputs["steps_per_frame"])
-    g = torch.cat([inputs["grasp0"], inputs["grasp0"] + dt * inputs["hand_vel"][0, :, 6].cumsum(0)])
+    inputs, options, _, _, events = put_onto_rollouts
+    dt = 1.0 / (FPS * options["steps_per_frame"])
+    g = torch.cat([inputs.grasp0, inputs.grasp0 + dt * inputs.hand_vel[0, :, 6].cumsum(0)])
     crossings = []
     for n in range(len(g) - 1):
         if (g[n] > 0) != (g[n + 1] > 0):  # the tip is inside the object: f = -g here
@@ -115,33 +118,32 @@ def test_events_are_where_the_grasp_signal_crosses_zero(put_onto_rollouts):
 
 
 def test_float32_inputs_give_float32_outputs():
-    inputs = free_fall_inputs(frames=2)
-    out = simulate_dopri5(**{k: v.float() if torch.is_tensor(v) else v for k, v in inputs.items()})
+    inputs, options = free_fall_inputs(frames=2)
+    out = simulate_dopri5(inputs.to(torch.float32), **options)
     assert out.object_pos.dtype == torch.float32
 
 
 def test_rejects_what_simulate_rejects():
-    inputs = free_fall_inputs(frames=2)
+    inputs, options = free_fall_inputs(frames=2)
     with pytest.raises(ValueError, match="hand_vel must have"):
-        simulate_dopri5(**{**inputs, "hand_vel": inputs["hand_vel"][:, :-1]})
+        simulate_dopri5(replace(inputs, hand_vel=inputs.hand_vel[:, :-1]), **options)
 
 
-def release_window(rollout, inputs: dict, first: int = 16, frames: int = 4) -> dict:
+def release_window(rollout, inputs: SceneInputs, spf: int, first: int = 16, frames: int = 4) -> SceneInputs:
     """Frames ``first`` .. ``first + frames - 1`` of put_onto as a scene of its own: the object
     held at rest relative to the hand, released at 1.49 s, landing on the static cuboid."""
-    spf = inputs["steps_per_frame"]
     start, stop = first * spf, (first + frames - 1) * spf
     dt = 1.0 / (FPS * spf)
-    moved = dt * inputs["hand_vel"][:, :start].sum(1)
+    moved = dt * inputs.hand_vel[:, :start].sum(1)
     pick = lambda name: getattr(rollout, name)[:, first].detach().clone()  # noqa: E731
-    return {
-        **inputs,
-        "hand_pos0": inputs["hand_pos0"] + moved[:, :3],
-        "grasp0": inputs["grasp0"] + moved[:, 6],
-        "hand_vel": inputs["hand_vel"][:, start:stop].clone(),
-        "object_pos0": pick("object_pos"),
-        "object_rot0": pick("object_rot"),
-    }
+    return replace(
+        inputs,
+        hand_pos0=inputs.hand_pos0 + moved[:, :3],
+        grasp0=inputs.grasp0 + moved[:, 6],
+        hand_vel=inputs.hand_vel[:, start:stop].clone(),
+        object_pos0=pick("object_pos"),
+        object_rot0=pick("object_rot"),
+    )
 
 
 def test_gradients_match_finite_differences_across_the_release(put_onto_rollouts):
@@ -149,31 +151,31 @@ def test_gradients_match_finite_differences_across_the_release(put_onto_rollouts
     landing. The tolerances are tightened: at the default rtol 1e-7 the solver's error
     control makes the rollout only piecewise smooth at the scale of finite differences
     (at rtol 1e-6 the grasp0 derivative is 4% off the converged value)."""
-    inputs, _, ours, _ = put_onto_rollouts
-    scene = {**release_window(ours, inputs), "rtol": 1e-9, "atol": 1e-11}
+    inputs, options, _, ours, _ = put_onto_rollouts
+    scene = release_window(ours, inputs, options["steps_per_frame"])
+    options = {**options, "rtol": 1e-9, "atol": 1e-11}
     generator = torch.Generator().manual_seed(0)
-    tensors = {k: v for k, v in scene.items() if torch.is_tensor(v)}
-    options = {k: v for k, v in scene.items() if not torch.is_tensor(v)}
-    probe = simulate_dopri5(**scene)
+    probe = simulate_dopri5(scene, **options)
     shapes = {"pos": probe.object_pos.shape, "vel": probe.object_vel.shape, "tip": probe.tip_distance.shape}
     weights = {k: torch.randn(shape, generator=generator, dtype=torch.float64) for k, shape in shapes.items()}
 
-    def loss(values: dict) -> torch.Tensor:
+    def loss(values: SceneInputs) -> torch.Tensor:
         events: list = []
-        out = simulate_dopri5(**values, **options, events=events)
+        out = simulate_dopri5(values, **options, events=events)
         assert len(events[0]) == 1, "the window holds the release"
         terms = (out.object_pos * weights["pos"], 0.1 * out.object_vel * weights["vel"], out.tip_distance * weights["tip"])
         return sum(term.sum() for term in terms)
 
-    leaves = {k: v.clone().requires_grad_(True) for k, v in tensors.items()}
+    leaves = scene.map(lambda v: v.clone().requires_grad_(True))
     loss(leaves).backward()
     eps = 1e-6
     for name in ("grasp0", "hand_vel", "object_size"):
-        direction = torch.randn(tensors[name].shape, generator=generator, dtype=torch.float64)
+        value = getattr(scene, name)
+        direction = torch.randn(value.shape, generator=generator, dtype=torch.float64)
         if name == "hand_vel":
             direction[..., 3:6] = 0.0  # the scripted hand does not turn
-        analytic = float((leaves[name].grad * direction).sum())
-        shifted = [loss({**tensors, name: tensors[name] + sign * eps * direction}) for sign in (1, -1)]
+        analytic = float((getattr(leaves, name).grad * direction).sum())
+        shifted = [loss(replace(scene, **{name: value + sign * eps * direction})) for sign in (1, -1)]
         numeric = float(shifted[0] - shifted[1]) / (2 * eps)
         assert math.isfinite(analytic)
         assert abs(analytic - numeric) <= 1e-3 * abs(numeric) + 1e-5, f"{name}: {analytic} vs {numeric}"

@@ -1,10 +1,13 @@
 """Rollout adjoints of ``simulate`` against central differences (float64), input checks, and the
 spline basis that feeds it."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
 
+from warpskill.engine.records import SceneInputs
 from warpskill.engine.simulation import simulate
 from warpskill.optimizer.spline import natural_cubic_basis, step_velocities
 
@@ -32,7 +35,7 @@ def _yaw(angle: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def _scenes() -> dict[str, torch.Tensor]:
+def _scenes() -> SceneInputs:
     """Two float64 scenes of 1.2 s with one static cuboid each.
 
     0: the hand comes down onto the cuboid and closes, lifts it straight up, carries it over
@@ -53,18 +56,22 @@ def _scenes() -> dict[str, torch.Tensor]:
     vel[1, :, :] = [0.05, -0.1, 0.02, 0.5, -1.0, 0.7, 0.0]
     tilt = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(0.4), -np.sin(0.4)], [0.0, np.sin(0.4), np.cos(0.4)]])
     as_tensor = lambda a: torch.tensor(np.asarray(a, dtype=np.float64))  # noqa: E731
-    return {
-        "hand_pos0": as_tensor([[0.0, 0.0, 0.1], [0.3, 0.2, 0.3]]),
-        "hand_rot0": as_tensor([np.eye(3), _yaw(0.5)]),
-        "grasp0": as_tensor([-0.01, -0.05]),
-        "hand_vel": as_tensor(vel),
-        "object_pos0": as_tensor([[0.0, 0.0, 0.021], [0.065, 0.03, 0.12]]),
-        "object_rot0": as_tensor([np.eye(3), _yaw(0.3) @ tilt]),
-        "object_size": as_tensor([[0.06, 0.05, 0.04], [0.05, 0.07, 0.04]]),
-        "static_pos": as_tensor([[[0.17, 0.0, 0.03]], [[0.15, 0.0, 0.04]]]),
-        "static_rot": as_tensor([[_yaw(0.3)], [_yaw(-0.2)]]),
-        "static_size": as_tensor([[[0.1, 0.12, 0.06]], [[0.12, 0.1, 0.08]]]),
-    }
+    return SceneInputs(
+        hand_pos0=as_tensor([[0.0, 0.0, 0.1], [0.3, 0.2, 0.3]]),
+        hand_rot0=as_tensor([np.eye(3), _yaw(0.5)]),
+        grasp0=as_tensor([-0.01, -0.05]),
+        hand_vel=as_tensor(vel),
+        object_pos0=as_tensor([[0.0, 0.0, 0.021], [0.065, 0.03, 0.12]]),
+        object_rot0=as_tensor([np.eye(3), _yaw(0.3) @ tilt]),
+        object_size=as_tensor([[0.06, 0.05, 0.04], [0.05, 0.07, 0.04]]),
+        static_pos=as_tensor([[[0.17, 0.0, 0.03]], [[0.15, 0.0, 0.04]]]),
+        static_rot=as_tensor([[_yaw(0.3)], [_yaw(-0.2)]]),
+        static_size=as_tensor([[[0.1, 0.12, 0.06]], [[0.12, 0.1, 0.08]]]),
+    )
+
+
+def _leaves(inputs: SceneInputs) -> SceneInputs:
+    return inputs.map(lambda x: x.clone().requires_grad_(True))
 
 
 def _projection(rollout, weights: dict[str, torch.Tensor]) -> torch.Tensor:
@@ -72,7 +79,7 @@ def _projection(rollout, weights: dict[str, torch.Tensor]) -> torch.Tensor:
 
 
 def test_grasp_scene_does_what_it_says():
-    out = simulate(**_scenes(), steps_per_frame=SPF, fps=FPS)
+    out = simulate(_scenes(), steps_per_frame=SPF, fps=FPS)
     grasped = out.grasped[0]
     assert grasped[:6].max() < 1e-3 and grasped[11:29].min() > 0.98 and grasped[-4:].max() < 1e-3
     assert out.object_pos[0, -1, 0] == pytest.approx(0.17, abs=1e-3)  # carried over the static cuboid
@@ -82,8 +89,8 @@ def test_grasp_scene_does_what_it_says():
 
 def test_rollout_adjoints_match_finite_differences():
     torch.manual_seed(0)
-    inputs = {name: x.clone().requires_grad_(True) for name, x in _scenes().items()}
-    out = simulate(**inputs, steps_per_frame=SPF, fps=FPS)
+    inputs = _leaves(_scenes())
+    out = simulate(inputs, steps_per_frame=SPF, fps=FPS)
     weights = {name: torch.randn_like(value) for name, value in vars(out).items()}
     _projection(out, weights).backward()
 
@@ -92,16 +99,16 @@ def test_rollout_adjoints_match_finite_differences():
         for _ in range(2):  # random directions
             u = torch.randn_like(x)
             with torch.no_grad():
-                plus = simulate(**{**inputs, name: x + eps * u}, steps_per_frame=SPF, fps=FPS)
-                minus = simulate(**{**inputs, name: x - eps * u}, steps_per_frame=SPF, fps=FPS)
+                plus = simulate(replace(inputs, **{name: x + eps * u}), steps_per_frame=SPF, fps=FPS)
+                minus = simulate(replace(inputs, **{name: x - eps * u}), steps_per_frame=SPF, fps=FPS)
                 fd = (_projection(plus, weights) - _projection(minus, weights)).item() / (2 * eps)
             adjoint = (x.grad * u).sum().item()
             assert adjoint == pytest.approx(fd, rel=1e-6, abs=1e-6), name
 
 
 def test_repeated_backward_accumulates_the_same_gradient():
-    inputs = {name: x.clone().requires_grad_(True) for name, x in _scenes().items()}
-    out = simulate(**inputs, steps_per_frame=SPF, fps=FPS)
+    inputs = _leaves(_scenes())
+    out = simulate(inputs, steps_per_frame=SPF, fps=FPS)
     loss = out.object_pos.sum() + out.grasped.sum()
     loss.backward(retain_graph=True)
     first = {name: x.grad.clone() for name, x in inputs.items()}
@@ -113,17 +120,16 @@ def test_repeated_backward_accumulates_the_same_gradient():
 def test_outputs_do_not_depend_on_gradient_recording():
     inputs = _scenes()
     with torch.no_grad():
-        plain = simulate(**inputs, steps_per_frame=SPF, fps=FPS)
-    leaves = {k: v.clone().requires_grad_(True) for k, v in inputs.items()}
-    recorded = simulate(**leaves, steps_per_frame=SPF, fps=FPS)
+        plain = simulate(inputs, steps_per_frame=SPF, fps=FPS)
+    recorded = simulate(_leaves(inputs), steps_per_frame=SPF, fps=FPS)
     for name, value in vars(plain).items():
         assert torch.equal(value, getattr(recorded, name).detach()), name
 
 
 def test_float32_rollout_matches_float64():
     inputs = _scenes()
-    exact = simulate(**inputs, steps_per_frame=SPF, fps=FPS)
-    single = simulate(**{k: v.float() for k, v in inputs.items()}, steps_per_frame=SPF, fps=FPS)
+    exact = simulate(inputs, steps_per_frame=SPF, fps=FPS)
+    single = simulate(inputs.to(torch.float32), steps_per_frame=SPF, fps=FPS)
     for name, value in vars(exact).items():
         assert getattr(single, name).dtype == torch.float32
         assert (getattr(single, name).double() - value).abs().max() < 2e-5, name  # [m], [m/s], [rad/s], ...
@@ -142,7 +148,7 @@ def test_float32_rollout_matches_float64():
 )
 def test_simulate_rejects_bad_inputs(change, message):
     with pytest.raises(ValueError, match=message):
-        simulate(**{**_scenes(), **change}, steps_per_frame=SPF, fps=FPS)
+        simulate(replace(_scenes(), **change), steps_per_frame=SPF, fps=FPS)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import torch
 
+from warpskill.engine.records import SceneInputs
 from warpskill.engine.simulation import PhysicsConfig, simulate, substeps_per_frame
 
 FPS = 12.0
@@ -28,20 +29,19 @@ def _run(duration: float, *, hand_vel=None, hand_pos0=None, grasp0=None, statics
     steps = int(round(duration * FPS)) * SPF
     f32 = lambda a: torch.tensor(np.asarray(a, dtype=np.float64), dtype=torch.float32)  # noqa: E731
     K = 1 if statics else 0
-    return simulate(
-        f32(np.tile([0.0, 0.0, 1.0], (B, 1)) if hand_pos0 is None else hand_pos0),
-        f32(np.tile(np.eye(3), (B, 1, 1))),
-        f32(np.full(B, -1.0) if grasp0 is None else grasp0),
-        f32(np.zeros((B, steps, 7)) if hand_vel is None else hand_vel),
-        f32(objects["object_pos0"]),
-        f32(objects["object_rot0"]),
-        f32(objects["object_size"]),
-        f32([[s[0]] for s in statics]).reshape(B, K, 3),
-        f32([[_yaw(s[1])] for s in statics]).reshape(B, K, 3, 3),
-        f32([[s[2]] for s in statics]).reshape(B, K, 3),
-        steps_per_frame=SPF,
-        fps=FPS,
+    inputs = SceneInputs(
+        hand_pos0=f32(np.tile([0.0, 0.0, 1.0], (B, 1)) if hand_pos0 is None else hand_pos0),
+        hand_rot0=f32(np.tile(np.eye(3), (B, 1, 1))),
+        grasp0=f32(np.full(B, -1.0) if grasp0 is None else grasp0),
+        hand_vel=f32(np.zeros((B, steps, 7)) if hand_vel is None else hand_vel),
+        object_pos0=f32(objects["object_pos0"]),
+        object_rot0=f32(objects["object_rot0"]),
+        object_size=f32(objects["object_size"]),
+        static_pos=f32([[s[0]] for s in statics]).reshape(B, K, 3),
+        static_rot=f32([[_yaw(s[1])] for s in statics]).reshape(B, K, 3, 3),
+        static_size=f32([[s[2]] for s in statics]).reshape(B, K, 3),
     )
+    return simulate(inputs, steps_per_frame=SPF, fps=FPS)
 
 
 def _corners(pos: torch.Tensor, rot: torch.Tensor, size: np.ndarray) -> np.ndarray:

@@ -10,7 +10,8 @@ from warpskill.contract.camera import Intrinsics
 from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.engine.raycast import raycast_masks
-from warpskill.visual.pictures import MIN_OVERLAY_WIDTH, save_pictures
+from warpskill.visual.overlay import MIN_OVERLAY_WIDTH
+from warpskill.visual.pictures import save_pictures
 
 N, H, W = 8, 48, 80
 K_CAMERA = np.array([[70.0, 0.0, 40.0], [0.0, 70.0, 24.0], [0.0, 0.0, 1.0]])

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from warpskill.contract.demonstration import DemonstrationError
-from warpskill.data.propagation import propagate_masks, read_polygons
+from warpskill.data.propagation import propagate_masks, read_labelme, read_polygons
 
-MEAN_IOU = 0.9  # measured (seeds 0-2, refined): hand 0.99, object 0.94-0.96; 24 frames from the middle one
+MEAN_IOU = 0.9  # measured (seeds 0-2, refined): hand 0.99, object 0.99; 24 frames from the middle one
 
 
 def _video(n=24, h=96, w=128, seed=0):
@@ -57,28 +57,58 @@ def test_propagation_rejects_bad_inputs():
 def test_read_polygons(tmp_path):
     path = tmp_path / "polygons.json"
     square = [[10, 10], [30, 10], [30, 20], [10, 20]]
-    path.write_text(json.dumps({"frame": 3, "polygons": [
-        {"label": "hand", "points": square},
-        {"label": "object", "points": [[40, 40], [60, 40], [50, 55]]},
-        {"label": "object", "points": [[0, 0], [5, 0], [0, 5]]},
-    ]}))
+    path.write_text(json.dumps({"frame": 3, "hand": square, "object": [[40, 40], [60, 40], [50, 55]],
+                                "static": [[[0, 0], [5, 0], [0, 5]], [[70, 50], [80, 50], [80, 64], [70, 64]]]}))
     frame, masks = read_polygons(path, (64, 80))
-    assert frame == 3 and set(masks) == {"hand", "object"}
+    assert frame == 3 and list(masks) == ["hand", "object", "static_0", "static_1"]
     assert 200 <= int(masks["hand"].sum()) <= 231  # a 20 x 10 px rectangle, edges included
-    assert masks["object"][1, 1] and masks["object"][45, 50]  # both object polygons
+    assert masks["object"][45, 50] and masks["static_0"][1, 1] and masks["static_1"][60, 75]
+    assert read_polygons(path, (64, 80), frame=7)[0] == 7
+    path.write_text(json.dumps({"frame": 0, "hand": square, "object": square}))  # static may be left out
+    assert list(read_polygons(path, (64, 80))[1]) == ["hand", "object"]
+
+
+def test_read_labelme(tmp_path):
+    path = tmp_path / "frame_0012.json"
+    tri = [[40, 40], [60, 40], [50, 55]]
+    path.write_text(json.dumps({"imagePath": "frames/frame_0012.png", "imageHeight": 64, "imageWidth": 80, "shapes": [
+        {"label": "static_b", "points": [[0, 0], [5, 0], [0, 5]], "shape_type": "polygon"},
+        {"label": "object", "points": tri, "shape_type": "polygon"},
+        {"label": "hand", "points": [[10, 10], [30, 20]], "shape_type": "rectangle"},
+        {"label": "static_a", "points": [[70, 50], [80, 50], [80, 64]], "shape_type": "polygon"},
+    ]}))
+    polygons = read_labelme(path)
+    assert polygons["frame"] == 12 and polygons["object"] == tri
+    assert polygons["hand"] == [[10, 10], [30, 10], [30, 20], [10, 20]]
+    assert polygons["static"] == [[[70, 50], [80, 50], [80, 64]], [[0, 0], [5, 0], [0, 5]]]
+    assert read_labelme(path, frame=2)["frame"] == 2
+    frame, masks = read_polygons(path, (64, 80))  # detected by its keys
+    assert frame == 12 and list(masks) == ["hand", "object", "static_0", "static_1"]
+    with pytest.raises(DemonstrationError, match="80 x 64 .* the video's frames are 60 x 50"):
+        read_polygons(path, (50, 60))
+
+
+SQUARE = [[0, 0], [9, 0], [9, 9], [0, 9]]
 
 
 @pytest.mark.parametrize("content, match", [
     ("{not json", "not valid JSON"),
-    ('{"polygons": []}', "'frame'"),
-    ('{"frame": 0}', "'polygons'"),
-    ('{"frame": 0, "polygons": [{"label": "foot", "points": [[0, 0], [1, 0], [0, 1]]}]}', "label 'foot'"),
-    ('{"frame": 0, "polygons": [{"label": "hand", "points": [[0, 0], [1, 0]]}]}', "at least 3"),
-    ('{"frame": 0, "polygons": [{"label": "hand", "points": [[0, 0], [9, 0], [0, 9]]}]}', "no polygon labelled object"),
+    ({"hand": SQUARE, "object": SQUARE}, "missing frame"),
+    ({"frame": 0, "hand": SQUARE, "object": SQUARE, "objects": []}, "unknown objects"),
+    ({"frame": -1, "hand": SQUARE, "object": SQUARE}, "frame: expected a 0-based"),
+    ({"frame": 0, "hand": [[0, 0], [1, 0]], "object": SQUARE}, "hand: expected a polygon of at least 3"),
+    ({"frame": 0, "hand": SQUARE, "object": SQUARE, "static": SQUARE}, r"static\[0\]: expected a polygon"),
+    ({"frame": 0, "hand": SQUARE, "object": [[0, 0], [40, 0], [0, 9]]}, r"object: point \[40, 0\] lies outside the 16 x 16"),
+    ({"frame": 0, "hand": SQUARE, "object": [[3, 3], [3.2, 3], [3, 3.2]]}, "object: the polygon encloses 0.02 px\\^2, less than one pixel"),
+    ({"shapes": [{"label": "foot", "points": SQUARE}]}, "shapes\\[0\\]: label 'foot'"),
+    ({"shapes": [{"label": "hand", "points": SQUARE}], "imagePath": "a7.png"}, "no shape labelled 'object'"),
+    ({"shapes": [{"label": "hand", "points": SQUARE}, {"label": "object", "points": SQUARE}], "imagePath": "x.png"},
+     "no frame index"),
+    ({"shapes": [{"label": "hand", "points": SQUARE, "shape_type": "circle"}]}, "shape_type 'circle'"),
 ])
 def test_read_polygons_rejects_malformed_files(tmp_path, content, match):
     path = tmp_path / "bad.json"
-    path.write_text(content)
+    path.write_text(content if isinstance(content, str) else json.dumps(content))
     with pytest.raises(DemonstrationError, match=match) as error:
         read_polygons(path, (16, 16))
     assert str(path) in str(error.value)

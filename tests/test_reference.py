@@ -3,11 +3,14 @@ gradients (Warp's bridges against Torch autograd) of the rollout and the soft si
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
 
 from warpskill.contract.camera import Intrinsics
+from warpskill.engine.records import SceneInputs
 from warpskill.engine.reference.physics import simulate_reference
 from warpskill.engine.reference.raster import render_reference
 from warpskill.engine.rendering import render_silhouettes
@@ -18,13 +21,14 @@ from warpskill.synthetic import make_demonstration, scripted_inputs, scripted_sc
 DURATION = 2.0  # [s]: 480 steps of 1/240 s, the hand grasps, carries and releases
 
 
-def rollout_inputs(dtype: torch.dtype) -> dict:
-    """Scripted put_onto: grasp at about 0.7 s, carry onto the static cuboid, release at 1.5 s."""
+def rollout_inputs(dtype: torch.dtype) -> tuple[SceneInputs, dict]:
+    """Scripted put_onto: grasp at about 0.7 s, carry onto the static cuboid, release at 1.5 s;
+    the inputs and the keyword options of ``simulate``."""
     return scripted_inputs(scripted_scene("put_onto", duration=DURATION), 12.0, DURATION, dtype=dtype)
 
 
-def leaves(inputs: dict) -> dict:
-    return {k: v.clone().requires_grad_(True) if torch.is_tensor(v) else v for k, v in inputs.items()}
+def leaves(inputs: SceneInputs) -> SceneInputs:
+    return inputs.map(lambda v: v.clone().requires_grad_(True))
 
 
 @pytest.fixture(scope="module")
@@ -32,12 +36,13 @@ def rollouts64():
     """Warp and reference rollouts (float64) and their input gradients under one random projection."""
     results = []
     for simulator in (simulate, simulate_reference):
-        inputs = leaves(rollout_inputs(torch.float64))
-        out = simulator(**inputs)
+        inputs, options = rollout_inputs(torch.float64)
+        inputs = leaves(inputs)
+        out = simulator(inputs, **options)
         generator = torch.Generator().manual_seed(1)  # the same weights for both
         weights = {k: torch.randn(v.shape, generator=generator, dtype=v.dtype) for k, v in vars(out).items()}
         sum((getattr(out, k) * w).sum() for k, w in weights.items()).backward()
-        grads = {k: v.grad for k, v in inputs.items() if torch.is_tensor(v)}
+        grads = {k: v.grad for k, v in inputs.items()}
         results.append((out, grads))
     return results
 
@@ -59,8 +64,8 @@ def test_rollout_gradients_agree_in_float64(rollouts64):
 
 
 def test_rollout_values_agree_in_float32():
-    inputs = rollout_inputs(torch.float32)
-    warp, ref = simulate(**inputs), simulate_reference(**inputs)
+    inputs, options = rollout_inputs(torch.float32)
+    warp, ref = simulate(inputs, **options), simulate_reference(inputs, **options)
     for name in vars(warp):
         a, b = getattr(warp, name), getattr(ref, name)
         assert b.dtype == torch.float32
@@ -68,11 +73,11 @@ def test_rollout_values_agree_in_float32():
 
 
 def test_reference_rollout_rejects_what_simulate_rejects():
-    inputs = rollout_inputs(torch.float64)
+    inputs, options = rollout_inputs(torch.float64)
     with pytest.raises(ValueError, match="object_size must be positive"):
-        simulate_reference(**{**inputs, "object_size": -inputs["object_size"]})
+        simulate_reference(replace(inputs, object_size=-inputs.object_size), **options)
     with pytest.raises(ValueError, match="hand_vel must have"):
-        simulate_reference(**{**inputs, "hand_vel": inputs["hand_vel"][:, :-1]})
+        simulate_reference(replace(inputs, hand_vel=inputs.hand_vel[:, :-1]), **options)
 
 
 @pytest.fixture(scope="module")

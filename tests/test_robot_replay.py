@@ -57,11 +57,12 @@ def test_cli_retarget_and_replay(tmp_path, capsys):
 
 
 def test_cli_bad_plan_is_one_line(tmp_path, capsys):
-    recon = truth("put_onto", 0)  # no feasible grasp
+    recon = truth("put_onto", 0)  # too wide to grasp: --keep-size refuses a substitute
     recon.save(tmp_path / "recon.npz")
-    assert main(["retarget", str(tmp_path / "recon.npz"), "-o", str(tmp_path / "plan.npz")]) == 1
+    assert main(["retarget", str(tmp_path / "recon.npz"), "-o", str(tmp_path / "plan.npz"), "--keep-size"]) == 1
     err = capsys.readouterr().err
     assert err.startswith("warpskill: error: frame 15") and "no feasible grasp" in err
+    assert "wider than the gripper's 0.074 m usable opening" in err and err.count("\n") == 1
 
 
 def test_unknown_engine():
@@ -70,17 +71,20 @@ def test_unknown_engine():
         robot.replay(None, recon, engine="bullet")
 
 
-def test_cli_placement_moves_the_robot(tmp_path):
+def test_cli_placement_moves_the_robot(tmp_path, capsys):
     recon = truth("push_left_to_right", 0)
     recon.save(tmp_path / "recon.npz")
     assert main(["retarget", str(tmp_path / "recon.npz"), "-o", str(tmp_path / "a.npz")]) == 0
+    assert "placement (auto): scene centre at" in capsys.readouterr().out
     assert main(["retarget", str(tmp_path / "recon.npz"), "-o", str(tmp_path / "b.npz"),
                  "--offset", "0.45", "0.05", "--yaw", "80"]) == 0
+    assert "placement (given): scene centre at (0.45, 0.05) m in the base frame, yaw 80 deg" in capsys.readouterr().out
     a, b = robot.RobotPlan.load(tmp_path / "a.npz"), robot.RobotPlan.load(tmp_path / "b.npz")
+    assert a.placement == "auto" and b.placement == "given"
     yaw = lambda base: np.degrees(np.arctan2(base[1, 0], base[0, 0]))  # noqa: E731
-    assert yaw(a.base) == pytest.approx(90.0) and yaw(b.base) == pytest.approx(80.0)
-    # The same scene centre sits at each requested offset in its base frame.
-    centre_a = a.base[:2, 3] + a.base[:2, :2] @ np.array([0.5, 0.0])
+    assert yaw(a.base) == pytest.approx(np.degrees(a.yaw)) and yaw(b.base) == pytest.approx(80.0)
+    # The same scene centre sits at each plan's offset in its base frame.
+    centre_a = a.base[:2, 3] + a.base[:2, :2] @ a.offset
     centre_b = b.base[:2, 3] + b.base[:2, :2] @ np.array([0.45, 0.05])
     np.testing.assert_allclose(centre_a, centre_b, atol=1e-9)
 
@@ -100,10 +104,10 @@ def test_bench_robot_prints_the_table_and_keeps_the_plans(tmp_path, capsys):
                  "-o", str(tmp_path), "--video"]) == 0
     printed = capsys.readouterr().out
     rows = {line.split("|")[1].strip(): line for line in printed.splitlines() if line.startswith("| ")}
-    # push_left_to_right 0 plans and succeeds; put_onto 0's cuboid is too wide to grasp.
-    assert "1/2" in rows["planned"] and "1/2" in rows["replay mujoco"]
-    assert "put_onto seed 0: plan: frame 15" in printed and "no feasible grasp" in printed
+    # push_left_to_right 0 plans and succeeds; put_onto 0's cuboid is too wide: a substitute is put onto the box.
+    assert "2/2" in rows["planned"] and "2/2" in rows["replay mujoco"]
+    assert "put_onto" in printed and "substituted" in printed
     assert (tmp_path / "push_left_to_right_0" / "plan.npz").is_file()
     video = tmp_path / "push_left_to_right_0"
     assert (video / "replay.mp4").is_file() or (video / "replay.png").is_file()
-    assert not (tmp_path / "put_onto_0" / "plan.npz").exists()
+    assert (tmp_path / "put_onto_0" / "plan.npz").is_file()

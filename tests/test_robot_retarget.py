@@ -32,8 +32,9 @@ SPEED = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
 # pull_right_to_left 0: the cuboid is too wide to grasp, the gripper hooks it; push_right_to_left 0: the
 # start violates the hard collision margin and is softened; put_next_to 0: set down beside a taller box,
 # closer to it than a finger is thick.
+# put_onto 0: the cuboid is too wide to grasp: a substitute that fits is planned.
 CASES = [("pick_up", 0), ("push_left_to_right", 0), ("pull_right_to_left", 0), ("push_right_to_left", 0),
-         ("put_next_to", 0)]
+         ("put_next_to", 0), ("put_onto", 0)]
 
 
 def truth(action: str, seed: int) -> Reconstruction:
@@ -64,10 +65,10 @@ def test_plan_within_joint_limits(plans, case):
 
 @pytest.mark.parametrize("case", CASES)
 def test_plan_has_no_self_or_table_collision(plans, case):
-    from warpskill.robot.retargeting import _Planner
+    from warpskill.robot.planner import Planner
 
     recon, plan = plans[case]
-    planner = _Planner(make_scene(recon, base=plan.base))
+    planner = Planner(make_scene(plan.scene(recon), base=plan.base))  # the chosen base, the objects as handled
     for q, opening in zip(plan.q[::2], plan.gripper[::2]):
         planner.set_q(q, opening)
         closest = min(d.min_distance for d in planner.robot.distances())
@@ -97,8 +98,8 @@ def test_plan_save_load_csv(plans, tmp_path):
 
 def test_infeasible_grasp_names_frame():
     recon = truth("put_onto", 0)  # a 0.096 x 0.097 x 0.061 m box: wider than the gripper on every face
-    with pytest.raises(robot.PlanError, match=r"frame 15 .*no feasible grasp"):
-        robot.retarget(recon)
+    with pytest.raises(robot.PlanError, match=r"frame 15 .*no feasible grasp.*wider than the gripper's 0.074 m"):
+        robot.retarget(recon, keep_size=True)
 
 
 def test_unreachable_target_names_frame():
@@ -139,7 +140,7 @@ def _object_at(plan, i):
 
 
 def test_a_carried_cuboid_keeps_its_grasp_orientation(plans):
-    from warpskill.robot.retargeting import _rotation_error_deg
+    from warpskill.robot.planner import rotation_error_deg as _rotation_error_deg
 
     recon, plan = plans[("pick_up", 0)]
     turned = recon.object_rot.copy()

@@ -46,3 +46,58 @@ def test_same_seed_same_demonstration_and_unknown_action_rejected():
     np.testing.assert_array_equal(a.hand_mask, b.hand_mask)
     with pytest.raises(ValueError, match="pull_left_to_right"):
         make_demonstration("throw")
+
+
+# --------------------------------------------------------------------------- box input
+
+
+@pytest.mark.parametrize("action, seed", [("pick_up", 0), ("pick_up", 1), ("pick_up", 2), ("put_onto", 0),
+                                          ("put_behind", 1), ("push_left_to_right", 0)])
+def test_box_demonstrations_keep_a_truth_that_meets_the_criteria(action, seed):
+    demo = make_demonstration(action, seed=seed, input="boxes", image_size=(120, 214))
+    result = evaluate(Reconstruction(**demo.truth), action)
+    assert result.success, result.checks
+    # Every mask is the ellipse inscribed in a box: about pi/4 of its bounding box.
+    for mask in (demo.hand_mask, demo.object_mask):
+        k = int(np.argmax(mask.reshape(len(mask), -1).sum(1)))
+        rows, cols = np.nonzero(mask[k])
+        ratio = len(rows) / ((np.ptp(rows) + 1) * (np.ptp(cols) + 1))
+        assert 0.65 < ratio < 0.9
+
+
+def test_box_pick_ups_end_their_action_phase_while_the_hand_still_holds_the_object():
+    from warpskill.synthetic import PICK_UP_ENDINGS
+
+    assert PICK_UP_ENDINGS == ("held", "towards camera", "out of view")
+    for seed in range(3):
+        demo = make_demonstration("pick_up", seed=seed, input="boxes", image_size=(120, 214))
+        grasped = demo.truth["grasped"] > 0.5
+        assert grasped[-1]  # held to the end ...
+        assert np.flatnonzero(demo.contact)[-1] < len(grasped) - 5  # ... but the phase ended before
+    gone = make_demonstration("pick_up", seed=2, input="boxes", image_size=(120, 214))
+    assert not gone.object_mask[-1].any()  # lifted out of the view
+
+
+def test_box_input_is_checked_and_the_mask_input_unchanged():
+    with pytest.raises(ValueError, match="input"):
+        make_demonstration("pick_up", input="points")
+    a = make_demonstration("put_onto", seed=0, image_size=(60, 107))
+    b = make_demonstration("put_onto", seed=0, image_size=(60, 107), input="masks")
+    np.testing.assert_array_equal(a.object_mask, b.object_mask)
+
+
+def test_the_benchmark_measures_errors_and_scale_against_the_truth():
+    from warpskill.bench.synthetic import camera_frame_errors, error_table
+
+    demo = make_demonstration("put_onto", seed=0, noise="none", image_size=(60, 107))
+    truth = Reconstruction(**demo.truth)
+    exact = camera_frame_errors(truth, demo.truth)
+    assert exact["scale"] == pytest.approx(1.0) and max(v for k, v in exact.items() if k != "scale") < 1e-9
+    # The same scene scaled about the camera: every camera-frame distance scales.
+    fields = dict(demo.truth)
+    for key in ("hand_pos", "object_pos", "object_size", "static_pos", "static_size", "camera_height"):
+        fields[key] = 0.8 * np.asarray(demo.truth[key])
+    shrunk = camera_frame_errors(Reconstruction(**fields), demo.truth)
+    assert shrunk["scale"] == pytest.approx(0.8)
+    table = error_table({"full method": [exact, shrunk]})
+    assert "scale" in table and "0.90" in table

@@ -7,7 +7,10 @@ The public API, loaded on first use (so the command line starts fast):
 - metric: :func:`evaluate`
 - engine: :func:`simulate`, :class:`PhysicsConfig`, :func:`render_silhouettes`
 - synthetic data: :func:`make_demonstration`
-- robot (extra ``warpskill[robot]``): :func:`retarget`, :func:`replay`, :class:`RobotPlan`
+- robot (extra ``warpskill[robot]``): :func:`retarget`, :func:`replay`, :class:`RobotPlan`, :class:`Replay`
+- the layers, as submodules: :mod:`contract`, :mod:`data` (readers of real recordings),
+  :mod:`engine`, :mod:`optimizer`, :mod:`robot`, :mod:`visual`, :mod:`bench`
+  (``docs/architecture.md`` draws them and their import rules)
 """
 
 from __future__ import annotations
@@ -36,6 +39,11 @@ _EXPORTS = {
     "replay": "robot.replaying",
     "RobotPlan": "robot.plan",
     "PlanError": "robot.plan",
+    "Replay": "contract.replay",
+    "Intrinsics": "contract.camera",
+    "save_pictures": "visual.pictures",
+    "view": "visual.rerun_view",
+    **{layer: None for layer in ("contract", "data", "engine", "optimizer", "robot", "visual", "bench")},
 }
 
 __all__ = sorted(_EXPORTS)

@@ -11,14 +11,18 @@ def lazy_exports(package: str, exports: dict[str, str], namespace: dict) -> tupl
 
     Args:
         package: the package's ``__name__``.
-        exports: public name -> submodule (relative to the package) that defines it.
+        exports: public name -> submodule (relative to the package) that defines it, or
+            ``None`` for a name that is itself a submodule (``warpskill.data``).
         namespace: the package's ``globals()``; a loaded name is cached there.
     """
 
     def __getattr__(name: str):
         if name not in exports:
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
-        value = getattr(importlib.import_module(f".{exports[name]}", package), name)
+        if exports[name] is None:
+            value = importlib.import_module(f".{name}", package)
+        else:
+            value = getattr(importlib.import_module(f".{exports[name]}", package), name)
         namespace[name] = value
         return value
 

@@ -10,7 +10,8 @@ flips in isolated frames.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from types import SimpleNamespace
 
 import cv2
 import numpy as np
@@ -19,10 +20,21 @@ import torch
 from warpskill.contract.actions import ACTIONS, check_action
 from warpskill.contract.camera import Intrinsics
 from warpskill.contract.demonstration import Demonstration
+from warpskill.contract.geometry import frame_from_axis, min_jerk
+from warpskill.data.box_annotations import box_masks
+from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.raycast import raycast_masks
+from warpskill.engine.records import SceneInputs
 from warpskill.engine.simulation import PhysicsConfig, simulate, substeps_per_frame
 
 GRASP_LEVEL = 0.02  # [m] |g| of the scripted grasp signal
+INPUTS = ("masks", "boxes")
+"""What a synthetic demonstration's masks are: the true silhouettes spoiled (``"masks"``), or
+the ellipses inscribed in per-frame boxes of them, as the Something-Else reader makes them
+(``"boxes"``; contact from annotator-like phases, scenes with the real videos' situations)."""
+PICK_UP_ENDINGS = ("held", "towards camera", "out of view")
+"""How a ``"boxes"`` pick-up ends (by seed): held still in the air; brought towards the
+camera; lifted out of the top of the view."""
 TIP_DEPTH = 0.012  # [m] how deep the scripted tip enters the object
 
 
@@ -69,6 +81,16 @@ class _Script:
     static_size: np.ndarray  # (K, 3)
     camera_height: float
     camera_elevation: float
+    phase_end: float | None = None  # [s] where an annotator ends the action phase (None: at the release)
+
+
+@dataclass(frozen=True)
+class _Variant:
+    """The real videos' situations a ``"boxes"`` demonstration adds to the scripted scene."""
+
+    ending: str = "held"  # pick_up: one of PICK_UP_ENDINGS
+    far_start: bool = False  # the hand enters (and leaves) through the image border
+    wide_static: float = 0.0  # > 0: the static box is this wide [m] (larger than / cut by the frame)
 
 
 def make_demonstration(
@@ -79,6 +101,7 @@ def make_demonstration(
     image_size: tuple[int, int] = (240, 427),
     fps: float = 12.0,
     duration: float = 4.0,
+    input: str = "masks",
 ) -> Demonstration:
     """A synthetic demonstration of ``action`` with its ground truth in ``demo.truth``.
 
@@ -89,24 +112,41 @@ def make_demonstration(
         image_size: (H, W) of the masks [px].
         fps: frame rate [1/s].
         duration: video length [s].
+        input: one of :data:`INPUTS`. ``"boxes"``: each channel's mask is the ellipse
+            inscribed in the box of its true visible silhouette (box edges jittered by up to
+            ``noise.jitter`` px), rasterised by :func:`warpskill.data.box_annotations.box_masks`
+            as for Something-Else; the contact is an annotator's action phase (from the
+            grasp onset to the release; a pick-up's ends once the lift is done or the
+            object leaves the view, while the hand still holds it); and the scenes add
+            the real videos' situations (:data:`PICK_UP_ENDINGS`, a hand that enters
+            through the border, wide static boxes cut by the frame).
     """
     check_action(action)
+    if input not in INPUTS:
+        raise ValueError(f"input: expected one of {INPUTS}, got {input!r}")
     noise = NOISE_LEVELS[noise] if isinstance(noise, str) else noise
     rng = np.random.default_rng([seed, ACTIONS.index(action)])
+    boxes = input == "boxes"
+    variant_rng = np.random.default_rng([seed, ACTIONS.index(action), 1])
     intrinsics = Intrinsics.default(*image_size)
     for _ in range(50):
-        script = _script(action, rng, duration)
+        variant = _draw_variant(action, seed, variant_rng) if boxes else None
+        script = _script(action, rng, duration, variant)
         truth = _simulate(script, fps, duration)
         masks = _render(truth, intrinsics)
-        if _in_view(masks):
+        if _in_view(masks, partly=boxes):
             break
     else:  # pragma: no cover - the scripts are built to stay in view
         raise RuntimeError(f"could not place a {action} scene in view")
     truth["action"] = np.array(action)
     truth["camera_K"] = intrinsics.K
     truth["image_size"] = np.array(image_size)
-    contact = _noisy_contact(truth["grasped"] > 0.5, noise, rng)
-    hand, obj, static = _noisy_channels(masks, noise, rng)
+    if boxes:
+        contact = _noisy_contact(_phase_contact(script, truth, masks), replace(noise, contact_flips=0), rng)
+        hand, obj, static = _box_channels(masks, noise, rng)
+    else:
+        contact = _noisy_contact(truth["grasped"] > 0.5, noise, rng)
+        hand, obj, static = _noisy_channels(masks, noise, rng)
     return Demonstration.from_arrays(
         hand, obj, contact, fps, static_mask=static, camera_K=intrinsics.K, action=action, truth=truth
     )
@@ -120,8 +160,51 @@ def _noisy_channels(masks: np.ndarray, noise: Noise, rng: np.random.Generator):
     return hand, obj, (np.stack(statics) if statics else None)
 
 
-def _script(action: str, rng: np.random.Generator, duration: float) -> _Script:
-    """Scene and hand waypoints for one action (world frame of FORMATS.md)."""
+def _draw_variant(action: str, seed: int, rng: np.random.Generator) -> _Variant:
+    """The situations of one ``"boxes"`` demonstration: the pick-up ending by seed, the rest drawn."""
+    far_start = bool(rng.random() < 0.5)
+    wide = float(rng.uniform(0.3, 0.5)) if action.startswith("put_") and rng.random() < 0.35 else 0.0
+    return _Variant(ending=PICK_UP_ENDINGS[seed % len(PICK_UP_ENDINGS)], far_start=far_start, wide_static=wide)
+
+
+def _box_channels(masks: np.ndarray, noise: Noise, rng: np.random.Generator):
+    """Ellipses inscribed in jittered boxes of each channel's visible silhouette, as box annotations give them."""
+    N, C, H, W = masks.shape
+    channels = []
+    for c in range(C):
+        boxes = np.full((N, 4), np.nan)
+        for k in range(N):
+            rows, cols = np.nonzero(masks[k, c])
+            if len(rows) == 0:
+                continue
+            box = np.array([cols.min(), rows.min(), cols.max() + 1.0, rows.max() + 1.0])
+            if noise.jitter:
+                box = box + rng.integers(-noise.jitter, noise.jitter + 1, size=4)
+            x1, y1, x2, y2 = np.clip(box, 0, [W, H, W, H])
+            if x2 - x1 >= 1 and y2 - y1 >= 1:
+                boxes[k] = x1, y1, x2, y2
+        channels.append(box_masks(boxes, (H, W)))
+    statics = channels[2:]
+    return channels[0], channels[1], (np.stack(statics) if statics else None)
+
+
+def _phase_contact(script: _Script, truth: dict[str, np.ndarray], masks: np.ndarray) -> np.ndarray:
+    """An annotator's action phase: from the grasp onset to the release, or to ``script.phase_end``
+    (clipped to the object's last visible frame), as a per-frame contact signal."""
+    grasped = truth["grasped"] > 0.5
+    contact = grasped.copy()
+    on = np.flatnonzero(grasped)
+    if script.phase_end is not None and len(on):
+        seen = np.flatnonzero(masks[:, 1].reshape(len(masks), -1).any(1))
+        last = min(int(round(script.phase_end * float(truth["fps"]))), int(seen[-1]) if len(seen) else len(contact))
+        contact[:] = False
+        contact[on[0] : max(last, on[0]) + 1] = True
+    return contact
+
+
+def _script(action: str, rng: np.random.Generator, duration: float, variant: _Variant | None = None) -> _Script:
+    """Scene and hand waypoints for one action (world frame of FORMATS.md); ``variant`` adds
+    the situations of a ``"boxes"`` demonstration (None: the plain scene)."""
     u = rng.uniform
     size = np.array([u(0.05, 0.11), u(0.05, 0.11), u(0.05, 0.12)])
     yaw = u(-0.3, 0.3)
@@ -137,6 +220,13 @@ def _script(action: str, rng: np.random.Generator, duration: float) -> _Script:
         static_yaw = np.array([u(-0.2, 0.2)])
         centre[0] += side * 0.12
         centre[1] -= 0.05
+        if variant is not None and variant.wide_static:
+            # A wide static box, cut by the frame: it extends away from the object.
+            grow = variant.wide_static - s_size[0]
+            static_size = static_size.copy()
+            static_size[0, 0] = variant.wide_static
+            static_pos = static_pos.copy()
+            static_pos[0, 0] -= side * 0.5 * grow
 
     # Grasp points: the side facing the motion's start for push/pull, the top otherwise.
     t_on, t_off, t_end = 0.3 * duration, 0.72 * duration, duration
@@ -156,19 +246,32 @@ def _script(action: str, rng: np.random.Generator, duration: float) -> _Script:
         if action == "pick_up":
             path = [lift]
             t_off = None
+            ending = variant.ending if variant is not None else None
+            if ending == "towards camera":  # held up and brought towards the camera: its box grows
+                path = [lift, lift + np.array([0.0, -u(0.35, 0.45), u(0.0, 0.06)])]
+            elif ending == "out of view":  # lifted out of the top of the view
+                path = [lift + np.array([0.0, 0.0, 0.25]), lift + np.array([0.0, u(0.0, 0.1), u(0.45, 0.6)])]
         else:
             target = _put_target(action, static_pos[0], static_size[0], size, rng)
             above = target + np.array([0.0, 0.0, 0.08])
             lowered = target + np.array([0.0, 0.0, size[2] / 2 - TIP_DEPTH + 0.004])
             path = [lift, np.array([above[0], above[1], lift[2]]), lowered]
     axis = axis / np.linalg.norm(axis)
-    start = grasp + 0.15 * axis + np.array([0.0, 0.0, 0.05])
+    reach = 0.3 if variant is not None and variant.far_start else 0.15
+    start = grasp + reach * axis + np.array([0.0, 0.0, 0.05])
     waypoints = [(0.0, start), (t_on - 0.05 * duration, grasp), (t_on + 0.04 * duration, grasp)]
     action_end = (t_off if t_off is not None else t_end) - 0.03 * duration
+    phase_end = None
+    if variant is not None and action == "pick_up":
+        # The lift ends early; the annotator's action phase ends with it (or once the object
+        # has left the view) while the hand still holds the object up to the video's end.
+        action_end = 0.62 * duration if variant.ending == "held" else 0.85 * duration
+        lifted_at = t_on + 0.04 * duration + (action_end - t_on - 0.04 * duration) / len(path)
+        phase_end = (lifted_at + u(0.0, 0.08) * duration) if variant.ending != "out of view" else t_end
     times = np.linspace(t_on + 0.04 * duration, action_end, len(path) + 1)[1:]
     waypoints += list(zip(times, path))
     if t_off is not None:
-        leave = path[-1] + 0.15 * axis + np.array([0.0, 0.0, 0.05])
+        leave = path[-1] + reach * axis + np.array([0.0, 0.0, 0.05])
         waypoints += [(t_off + 0.04 * duration, path[-1]), (t_end - 0.05 * duration, leave)]
     return _Script(
         waypoints=waypoints,
@@ -183,6 +286,7 @@ def _script(action: str, rng: np.random.Generator, duration: float) -> _Script:
         static_size=static_size,
         camera_height=u(0.38, 0.52),
         camera_elevation=u(0.5, 0.75),
+        phase_end=phase_end,
     )
 
 
@@ -200,7 +304,7 @@ def _put_target(action: str, s_pos: np.ndarray, s_size: np.ndarray, size: np.nda
     return np.array([s_pos[0], s_pos[1], size[2] / 2]) + offset
 
 
-def _min_jerk(waypoints: list[tuple[float, np.ndarray]], times: np.ndarray) -> np.ndarray:
+def _waypoint_path(waypoints: list[tuple[float, np.ndarray]], times: np.ndarray) -> np.ndarray:
     """Tip positions (T, 3) at ``times`` along minimum-jerk moves between waypoints."""
     out = np.empty((len(times), 3))
     for i, t in enumerate(times):
@@ -209,8 +313,7 @@ def _min_jerk(waypoints: list[tuple[float, np.ndarray]], times: np.ndarray) -> n
             out[i] = waypoints[-1][1]
             continue
         (t0, x0), (t1, x1) = waypoints[k], waypoints[k + 1]
-        tau = np.clip((t - t0) / (t1 - t0), 0.0, 1.0)
-        out[i] = x0 + (x1 - x0) * (10 * tau**3 - 15 * tau**4 + 6 * tau**5)
+        out[i] = x0 + (x1 - x0) * min_jerk((t - t0) / (t1 - t0))
     return out
 
 
@@ -221,34 +324,30 @@ def _grasp_signal(script: _Script, times: np.ndarray, ramp: float = 0.1) -> np.n
     return GRASP_LEVEL * (2.0 * (up - down) - 1.0)
 
 
-def _hand_rotation(axis: np.ndarray) -> np.ndarray:
-    """A hand rotation whose local z (tip to arm) is ``axis``."""
-    helper = np.array([0.0, 0.0, 1.0]) if abs(axis[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    x = np.cross(helper, axis)
-    x /= np.linalg.norm(x)
-    return np.stack([x, np.cross(axis, x), axis], -1)
-
-
 def _yaw(angle: float) -> np.ndarray:
     c, s = np.cos(angle), np.sin(angle)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def scripted_inputs(script: _Script, fps: float, duration: float, dtype=torch.float64) -> dict[str, object]:
-    """Keyword arguments of :func:`warpskill.engine.simulation.simulate` (batch of one) for a script."""
+def scripted_inputs(
+    script: _Script, fps: float, duration: float, dtype=torch.float64
+) -> tuple[SceneInputs, dict[str, object]]:
+    """The rollout inputs (B = 1) of a script at ``fps`` [1/s] over ``duration`` [s], and the
+    keyword options (``steps_per_frame``, ``fps``, ``config``) of
+    :func:`warpskill.engine.simulation.simulate` for them: ``simulate(inputs, **options)``."""
     physics = PhysicsConfig()
     spf = substeps_per_frame(fps, physics)
     num_frames = int(round(duration * fps)) + 1
     dt = 1.0 / (fps * spf)
     edges = np.arange((num_frames - 1) * spf + 1) * dt
-    tip = _min_jerk(script.waypoints, edges)
+    tip = _waypoint_path(script.waypoints, edges)
     grasp = _grasp_signal(script, edges)
     velocity = np.concatenate([np.diff(tip, axis=0), np.zeros((len(edges) - 1, 3)), np.diff(grasp)[:, None]], 1) / dt
     K = len(script.static_pos)
     t = lambda a: torch.as_tensor(np.asarray(a), dtype=dtype)[None]  # noqa: E731
-    return dict(
+    inputs = SceneInputs(
         hand_pos0=t(tip[0]),
-        hand_rot0=t(_hand_rotation(script.hand_axis)),
+        hand_rot0=t(frame_from_axis(script.hand_axis)),
         grasp0=t(grasp[:1])[0],
         hand_vel=t(velocity),
         object_pos0=t(script.object_pos),
@@ -257,10 +356,8 @@ def scripted_inputs(script: _Script, fps: float, duration: float, dtype=torch.fl
         static_pos=t(script.static_pos.reshape(K, 3)),
         static_rot=t(_static_rotations(script)),
         static_size=t(script.static_size.reshape(K, 3)),
-        steps_per_frame=spf,
-        fps=fps,
-        config=physics,
     )
+    return inputs, dict(steps_per_frame=spf, fps=fps, config=physics)
 
 
 def scripted_scene(action: str, seed: int = 0, duration: float = 4.0) -> _Script:
@@ -276,8 +373,8 @@ def _static_rotations(script: _Script) -> np.ndarray:
 
 def _simulate(script: _Script, fps: float, duration: float) -> dict[str, np.ndarray]:
     """Run the engine on a script; returns the ground truth reconstruction fields."""
-    inputs = scripted_inputs(script, fps, duration)
-    out = simulate(**inputs)
+    inputs, options = scripted_inputs(script, fps, duration)
+    out = simulate(inputs, **options)
     num_frames = out.hand_pos.shape[1]
     K = len(script.static_pos)
     n = lambda x: x[0].detach().numpy()  # noqa: E731
@@ -302,13 +399,7 @@ def _simulate(script: _Script, fps: float, duration: float) -> dict[str, np.ndar
 
 def _render(truth: dict[str, np.ndarray], intrinsics: Intrinsics) -> np.ndarray:
     """Exact visible masks (N, 2 + K, H, W) of the true scene."""
-    N = len(truth["t"])
-    K = len(truth["static_pos"])
-    cuboid_pos = np.concatenate([truth["object_pos"][:, None], np.broadcast_to(truth["static_pos"], (N, K, 3))], 1)
-    cuboid_rot = np.concatenate(
-        [truth["object_rot"][:, None], np.broadcast_to(truth["static_rot"], (N, K, 3, 3))], 1
-    )
-    cuboid_size = np.concatenate([truth["object_size"][None], truth["static_size"]], 0)
+    cuboid_pos, cuboid_rot, cuboid_size = scene_cuboids(SimpleNamespace(**truth))
     return raycast_masks(
         truth["hand_pos"],
         truth["hand_rot"],
@@ -321,11 +412,17 @@ def _render(truth: dict[str, np.ndarray], intrinsics: Intrinsics) -> np.ndarray:
     )
 
 
-def _in_view(masks: np.ndarray, margin: int = 2) -> bool:
-    """Whether every cuboid stays inside the image (not touching its border) and is seen."""
+def _in_view(masks: np.ndarray, margin: int = 2, *, partly: bool = False) -> bool:
+    """Whether every cuboid stays inside the image (not touching its border) and is seen.
+
+    ``partly``: the object need only be inside the image until it is grasped (it may then
+    leave the view with the hand), and static boxes may be cut by the frame.
+    """
     cuboids = masks[:, 1:]
     border = np.zeros(masks.shape[-2:], bool)
     border[:margin], border[-margin:], border[:, :margin], border[:, -margin:] = True, True, True, True
+    if partly:
+        cuboids = cuboids[: max(1, len(cuboids) // 3), :1]
     touches = (cuboids & border).any()
     seen = cuboids.reshape(*cuboids.shape[:2], -1).any(-1)
     return not touches and seen[:, 0].mean() > 0.8 and masks[:, 0].any()

@@ -23,22 +23,17 @@ def bench_kernels(device: str = "cpu", repeats: int = 5) -> list[dict]:
     device = torch.device(device)
     rows = []
 
-    inputs = scripted_inputs(scripted_scene("put_onto"), 12.0, 4.0, dtype=torch.float32)
-    steps = inputs["hand_vel"].shape[1]
+    inputs, options = scripted_inputs(scripted_scene("put_onto"), 12.0, 4.0, dtype=torch.float32)
+    steps = inputs.hand_vel.shape[1]
     for batch in (1, 64):
-        tensors = {
-            k: (v.to(device).repeat(batch, *[1] * (v.ndim - 1)).requires_grad_(v.is_floating_point()))
-            if torch.is_tensor(v)
-            else v
-            for k, v in inputs.items()
-        }
+        tensors = inputs.map(lambda v: v.to(device).repeat(batch, *[1] * (v.ndim - 1)).requires_grad_())
 
         def forward():
             with torch.no_grad():
-                return simulate(**tensors)
+                return simulate(tensors, **options)
 
         def backward():
-            out = simulate(**tensors)
+            out = simulate(tensors, **options)
             (out.object_pos.sum() + out.hand_pos.sum()).backward()
 
         for label, fn in (("forward", forward), ("forward+backward", backward)):

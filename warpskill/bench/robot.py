@@ -8,6 +8,7 @@ times, and the reason of every failed plan.
 
 from __future__ import annotations
 
+import math
 import statistics
 from pathlib import Path
 from typing import Sequence
@@ -99,14 +100,17 @@ def bench_robot(*, seeds: int = 3, source: str = "truth", engines: Sequence[str]
             for engine in engines:
                 result = replay(plan, recon, engine=engine, device=None if engine == "mujoco" else device)
                 if video and folder is not None and recorded is None:
-                    recorded = record(plan, recon, result, folder)
+                    recorded = record(plan, plan.scene(recon), result, folder)
                 replaying[engine].append(result.replay_time)
                 rows[f"replay {engine}"].append((action, result.success))
                 if not result.success:
                     failed = [name for name, ok in result.evaluation.checks.items() if not ok]
                     failures.append(f"{action} seed {seed}: {engine} replay fails {', '.join(failed)}")
                 verdicts.append(f"{engine} {'ok  ' if result.success else 'fail'} {result.replay_time:5.1f} s")
-            print(f"{action:<22} seed {seed}: planned {plan.planning_time:4.1f} s ({plan.grasp_name}); "
+            where = "" if plan.offset is None else (f", at ({plan.offset[0]:.2f}, {plan.offset[1]:.2f}) m "
+                                                    f"{math.degrees(plan.yaw):.0f} deg")
+            resized = ", substituted object" if plan.note else ""
+            print(f"{action:<22} seed {seed}: planned {plan.planning_time:4.1f} s ({plan.grasp_name}{where}{resized}); "
                   + "; ".join(verdicts), flush=True)
 
     print()

@@ -102,7 +102,8 @@ class Problem:
         """Stage (b) loss terms of :attr:`physical` (or of ``scenes`` fitting the same masks, summed)
         on ``engine``, with the batched calls of :func:`warpskill.optimize_many`."""
         scenes = list(scenes or [self.physical])
-        rollouts = simulate_many([scene.simulation_inputs() for scene in scenes], engine.simulate)
+        rollouts = simulate_many([scene.simulation_inputs() for scene in scenes],
+                                 [scene.simulation_options() for scene in scenes], engine.simulate)
         results = [scene.assemble(rollout) for scene, rollout in zip(scenes, rollouts)]
         given = self.inputs
         rendered = render_many([r.scene for r in results], [given.intrinsics] * len(scenes), self.config.sigma,

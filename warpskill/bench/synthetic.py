@@ -16,11 +16,15 @@ from warpskill.engine.projection import world_to_camera
 
 
 def camera_frame_errors(recon, truth: dict[str, np.ndarray]) -> dict[str, float]:
-    """Median object-centre error [m] and object-size error [m] against the ground truth.
+    """Errors of a reconstruction against the ground truth.
 
-    Centres are compared in each scene's own camera frame, where the world's ambiguity
-    (camera height and elevation) cancels; sizes as sorted edge lengths (a cuboid's axes
-    may be permuted), mean absolute error.
+    Keys: ``centre`` and ``hand`` (median over frames of the object-centre and hand-tip
+    error [m], in each scene's own camera frame, where the world's ambiguity (camera height
+    and elevation) cancels); ``size`` (sorted edge lengths, mean absolute error [m]: a
+    cuboid's axes may be permuted); ``camera_height`` [m] and ``elevation`` [rad] (absolute
+    errors); ``scale``: the scene's size relative to the truth, the median over frames of
+    the object centre's distance from the camera, reconstructed over true (scaling the
+    scene about the camera multiplies exactly this distance).
     """
 
     def in_camera(pos, height, elevation):
@@ -30,8 +34,38 @@ def camera_frame_errors(recon, truth: dict[str, np.ndarray]) -> dict[str, float]
 
     est = in_camera(recon.object_pos, recon.camera_height, recon.camera_elevation)
     ref = in_camera(truth["object_pos"], truth["camera_height"], truth["camera_elevation"])
+    hand_est = in_camera(recon.hand_pos, recon.camera_height, recon.camera_elevation)
+    hand_ref = in_camera(truth["hand_pos"], truth["camera_height"], truth["camera_elevation"])
     size_error = np.abs(np.sort(recon.object_size) - np.sort(truth["object_size"])).mean()
-    return {"centre": float(np.median(np.linalg.norm(est - ref, axis=1))), "size": float(size_error)}
+    return {
+        "centre": float(np.median(np.linalg.norm(est - ref, axis=1))),
+        "hand": float(np.median(np.linalg.norm(hand_est - hand_ref, axis=1))),
+        "size": float(size_error),
+        "camera_height": float(abs(float(recon.camera_height) - float(truth["camera_height"]))),
+        "elevation": float(abs(float(recon.camera_elevation) - float(truth["camera_elevation"]))),
+        "scale": float(np.median(np.linalg.norm(est, axis=1) / np.linalg.norm(ref, axis=1))),
+    }
+
+
+def error_table(errors: dict[str, list[dict[str, float]]]) -> str:
+    """Median and max over demonstrations of :func:`camera_frame_errors`, one row per method (Markdown)."""
+    header = ["method", "centre cm", "hand tip cm", "size cm", "cam height cm", "elevation deg", "scale",
+              "|scale-1|"]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for row, errs in errors.items():
+        if not errs:
+            continue
+        col = lambda key, f=1.0: np.array([e[key] for e in errs]) * f  # noqa: E731
+        cells = [row]
+        for values in (col("centre", 100), col("hand", 100), col("size", 100), col("camera_height", 100),
+                       col("elevation", 180 / np.pi)):
+            cells.append(f"{np.median(values):.1f} / {values.max():.1f}")
+        scale = col("scale")
+        cells.append(f"{np.median(scale):.2f} ({scale.min():.2f}-{scale.max():.2f})")
+        off = np.abs(scale - 1)
+        cells.append(f"{np.median(off):.2f} / {off.max():.2f}")
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n(median / max over demonstrations; scale: reconstructed / true distance of the object from the camera)"
 
 
 def bench_synthetic(
@@ -42,16 +76,28 @@ def bench_synthetic(
     out: Path | None = None,
     device: str = "cpu",
     iterations: int | None = None,
+    input: str = "masks",
+    known: Sequence[str] = (),
+    seed_start: int = 0,
 ) -> dict:
     """Reconstruct synthetic demonstrations of each action and print the paper's table.
 
     Rows: initialisation only, and the full method; columns: the actions (k/n), total, %.
-    Also prints the median camera-frame object-centre and size errors and the time per
+    Also prints the ground-truth errors (:func:`error_table`) and the time per
     demonstration.
+
+    Args:
+        input: ``"masks"`` or ``"boxes"`` (see :func:`warpskill.synthetic.make_demonstration`).
+        known: names of lengths (:data:`warpskill.optimizer.known.KNOWN_LENGTHS`) given to
+            the optimiser at their true values, e.g. ``["object_height"]``.
+        seed_start: the first seed (seeds ``seed_start .. seed_start + seeds - 1``).
     """
     from warpskill.contract.evaluation import evaluate, success_table
     from warpskill.optimizer.pipeline import optimize
+    from warpskill.optimizer.known import check_known, measured
     from warpskill.synthetic import make_demonstration
+
+    check_known({name: 1.0 for name in known})
 
     actions = list(actions or ACTIONS)
     rows: dict[str, list] = {"initialisation only": [], "full method": []}
@@ -59,15 +105,22 @@ def bench_synthetic(
     seconds = []
     with tempfile.TemporaryDirectory() as scratch:
         for action in actions:
-            for seed in range(seeds):
-                demo = make_demonstration(action, seed=seed, noise=noise)
+            for seed in range(seed_start, seed_start + seeds):
+                demo = make_demonstration(action, seed=seed, noise=noise, input=input)
+                t = {k: torch.as_tensor(np.asarray(demo.truth[k], dtype=np.float64))
+                     for k in ("object_size", "static_size", "camera_height")}
+                given = {}
+                for name in known:
+                    value = measured(name, t["object_size"], t["static_size"], t["camera_height"])
+                    if value is not None:
+                        given[name] = float(value)
                 folder = (out or Path(scratch)) / f"{action}_{seed}"
                 folder.mkdir(parents=True, exist_ok=True)
                 checkpoint = folder / "checkpoint.pt"
                 start = time.perf_counter()
                 for row, init_only in (("initialisation only", True), ("full method", False)):
                     recon = optimize(demo, device=device, iterations=iterations, seed=seed, progress=False,
-                                     init_only=init_only, checkpoint=checkpoint)
+                                     init_only=init_only, checkpoint=checkpoint, known=given)
                     ok = evaluate(recon, action).success
                     rows[row].append((action, ok))
                     errors[row].append(camera_frame_errors(recon, demo.truth))
@@ -82,10 +135,7 @@ def bench_synthetic(
     print()
     print(success_table(rows))
     print()
-    for row, errs in errors.items():
-        centre = np.median([e["centre"] for e in errs])
-        size = np.median([e["size"] for e in errs])
-        print(f"{row:<20} median object-centre error {100 * centre:5.1f} cm, size error {100 * size:5.1f} cm")
+    print(error_table(errors))
     print(f"time per demonstration (both stages, {device}): median {statistics.median(seconds):.1f} s, "
           f"max {max(seconds):.1f} s")
     return {"rows": rows, "errors": errors, "seconds": seconds}

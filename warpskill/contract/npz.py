@@ -11,14 +11,15 @@ from pathlib import Path
 
 import numpy as np
 
-_READ_ERRORS = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error)
+# NotImplementedError: an unknown compression method; RuntimeError: an encrypted member.
+_READ_ERRORS = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError, RuntimeError)
 
 
 def read_npz(path: str | os.PathLike, error: type[Exception]) -> dict[str, np.ndarray]:
     """Read every array of the ``.npz`` archive at ``path`` into memory.
 
     Arrays are read eagerly, so a corrupt member is reported here rather than on first use.
-    Pickled (object) arrays are refused.
+    Pickled (object) arrays, and members that are not ``.npy`` arrays, are refused.
 
     Args:
         path: the archive.
@@ -43,6 +44,8 @@ def read_npz(path: str | os.PathLike, error: type[Exception]) -> dict[str, np.nd
                 arrays[key] = archive[key]
             except _READ_ERRORS as exc:
                 raise error(f"{path}: {key}: unreadable ({type(exc).__name__}: {exc})") from exc
+            if not isinstance(arrays[key], np.ndarray):  # a member without the .npy suffix: its raw bytes
+                raise error(f"{path}: {key}: not a NumPy array (an archive member without the .npy suffix)")
     return arrays
 
 

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from warpskill.contract.actions import check_action
+from warpskill.contract.geometry import cuboid_corners
 from warpskill.contract.npz import read_npz, save_npz_atomic
 
 FIELD_SHAPES: dict[str, tuple[str | int, ...]] = {
@@ -40,9 +41,6 @@ FIELD_SHAPES: dict[str, tuple[str | int, ...]] = {
 
 _INTEGER_FIELDS = ("image_size",)
 _STRING_FIELDS = ("action",)
-
-# Signs of a unit cube's 8 corners, (8, 3).
-_CORNER_SIGNS = np.array([(x, y, z) for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)])
 
 
 class ReconstructionError(ValueError):
@@ -133,21 +131,6 @@ def _check_shape(
             raise ReconstructionError(f"{key}: expected shape {expected} with {want} = {bound}{origin}, got {shape}")
 
 
-def cuboid_corners(pos: np.ndarray, rot: np.ndarray, size: np.ndarray) -> np.ndarray:
-    """World corners of cuboids centred at ``pos``, rotated by ``rot``, edge lengths ``size``.
-
-    Args:
-        pos: (..., 3) centres [m].
-        rot: (..., 3, 3) rotations (local to world).
-        size: (..., 3) full edge lengths [m] along the local axes.
-
-    Returns:
-        (..., 8, 3) corners [m].
-    """
-    local = _CORNER_SIGNS * (np.asarray(size)[..., None, :] / 2.0)
-    return np.asarray(pos)[..., None, :] + local @ np.swapaxes(rot, -1, -2)
-
-
 @dataclasses.dataclass
 class Reconstruction:
     """Hand, object, static objects and camera found for one demonstration.
@@ -180,6 +163,8 @@ class Reconstruction:
         fields = {name: getattr(self, name) for name in FIELD_SHAPES}
         for name, array in check_fields(fields).items():
             setattr(self, name, array)
+        if self.num_frames == 0:
+            raise ReconstructionError("t: expected at least one frame, got shape (0,)")
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Reconstruction":

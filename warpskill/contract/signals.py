@@ -12,7 +12,9 @@ def majority_filter(signal: np.ndarray, window: int = 5) -> np.ndarray:
     """
     signal = np.asarray(signal, dtype=bool)
     kernel = np.ones(window, dtype=int)
-    votes = np.convolve(signal.astype(int), kernel, mode="same")
-    frames = np.convolve(np.ones(len(signal), dtype=int), kernel, mode="same")
+    # "full" then cut (not mode="same", which returns max(N, window) values for a video shorter than the window).
+    first, n = (window - 1) // 2, len(signal)
+    votes = np.convolve(signal.astype(int), kernel)[first : first + n]
+    frames = np.convolve(np.ones(n, dtype=int), kernel)[first : first + n]
     filtered = 2 * votes > frames
     return filtered if filtered.any() else signal

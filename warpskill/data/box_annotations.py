@@ -23,7 +23,8 @@ the box's corners overshoot.
 - a label missing in up to :data:`MAX_GAP` frames between two frames that have it: its box
   is interpolated linearly; longer gaps, and frames before the first / after the last box,
   are "not visible" (empty mask); frames absent from the file are handled the same way;
-- boxes are clipped to the image; empty or degenerate boxes are dropped;
+- boxes are clipped to the image; empty or degenerate boxes, and boxes with a NaN
+  coordinate, are dropped;
 - the video has N = max(last annotated frame, end of the last phase) frames.
 """
 
@@ -95,11 +96,13 @@ def read_something_else(
             JSON / CSV of this layout, a bad phase range or an unknown action name.
         FileNotFoundError: a file does not exist.
     """
-    with open(annotations) as handle:
+    with open(annotations, encoding="utf-8-sig") as handle:
         try:
             boxes = json.load(handle)
         except json.JSONDecodeError as exc:
             raise DemonstrationError(f"{annotations}: not valid JSON ({exc})") from None
+        except UnicodeDecodeError as exc:
+            raise DemonstrationError(f"{annotations}: not UTF-8 text ({exc})") from None
     if not isinstance(boxes, dict) or not all(isinstance(frames, list) for frames in boxes.values()):
         raise DemonstrationError(f"{annotations}: expected an object {{video_id: [frame entries]}}")
     phase_rows = _read_csv(phases, ("video_id", *PHASES))
@@ -108,7 +111,7 @@ def read_something_else(
     if actions is not None:
         for vid, (line, row) in _read_csv(actions, ("video_id", "action")).items():
             try:
-                action_table[vid] = check_action(row["action"].strip())
+                action_table[vid] = check_action((row["action"] or "").strip())
             except ValueError as exc:
                 raise DemonstrationError(f"{actions}, line {line}: {exc}") from None
     ids = sorted(set(boxes) | set(phase_table) | set(action_table), key=lambda vid: (len(vid), vid))
@@ -198,6 +201,9 @@ def _tracks(video: SomethingElseVideo, where: str, notes: list[str]) -> dict[str
     for index, entry in enumerate(video.frames):
         try:
             frame = int(_FRAME_NAME.search(entry["name"]).group(1))
+            if frame < 1:
+                raise DemonstrationError(f"{where}: frame entry {index}: frame number {frame} in {entry['name']!r}, "
+                                         "but frames are numbered from 1")
             placeholders = list(entry.get("gt_placeholders", []))
             for label in entry["labels"]:
                 role = _role(label, placeholders, frame, notes)
@@ -205,6 +211,8 @@ def _tracks(video: SomethingElseVideo, where: str, notes: list[str]) -> dict[str
                     box = label["box2d"]
                     box = np.array([box["x1"], box["y1"], box["x2"], box["y2"]], dtype=float)
                     candidates.setdefault(role, {}).setdefault(frame, []).append(box)
+        except DemonstrationError:
+            raise
         except (KeyError, TypeError, AttributeError, ValueError) as exc:
             detail = f"missing key {exc}" if isinstance(exc, KeyError) else "unexpected layout"
             raise DemonstrationError(f"{where}: frame entry {index}: {detail}") from None
@@ -248,17 +256,17 @@ def _pick(boxes: list[np.ndarray], single: dict[int, np.ndarray], frame: int) ->
 
 
 def _clip(track: dict[int, np.ndarray], image_size, role: str, notes: list[str]) -> dict[int, np.ndarray]:
-    """Boxes clipped to the image; empty ones dropped (noted)."""
+    """Boxes clipped to the image; empty ones and those with a NaN coordinate dropped (noted)."""
     h, w = image_size
     clipped, dropped = {}, []
     for frame, box in track.items():
         x1, y1, x2, y2 = np.clip(box, 0, [w, h, w, h])
-        if x2 - x1 < 1 or y2 - y1 < 1:
+        if np.isnan(box).any() or x2 - x1 < 1 or y2 - y1 < 1:
             dropped.append(frame)
         else:
             clipped[frame] = np.array([x1, y1, x2, y2])
     if dropped:
-        notes.append(f"{role}: dropped empty or out-of-image boxes in frame(s) {_ranges(dropped)}")
+        notes.append(f"{role}: dropped empty, non-finite or out-of-image boxes in frame(s) {_ranges(dropped)}")
     return clipped
 
 
@@ -310,16 +318,21 @@ def _box_mask(box: np.ndarray, image_size: tuple[int, int], shape: str) -> np.nd
 def _read_csv(path: str | os.PathLike, columns: tuple[str, ...]) -> dict[str, tuple[int, dict]]:
     """video_id -> (line number, row) of a CSV with at least ``columns``."""
     rows = {}
-    with open(path, newline="") as handle:
+    with open(path, newline="", encoding="utf-8-sig") as handle:
         reader = csv.DictReader(handle)
-        missing = set(columns) - set(reader.fieldnames or ())
-        if missing:
-            raise DemonstrationError(f"{path}: missing column(s) {', '.join(sorted(missing))}")
-        for row in reader:
-            vid = (row["video_id"] or "").strip()
-            if vid in rows:
-                raise DemonstrationError(f"{path}, line {reader.line_num}: video {vid} listed twice")
-            rows[vid] = (reader.line_num, row)
+        try:
+            missing = set(columns) - set(reader.fieldnames or ())
+            if missing:
+                raise DemonstrationError(f"{path}: missing column(s) {', '.join(sorted(missing))}")
+            for row in reader:
+                vid = (row["video_id"] or "").strip()
+                if vid in rows:
+                    raise DemonstrationError(f"{path}, line {reader.line_num}: video {vid} listed twice")
+                rows[vid] = (reader.line_num, row)
+        except UnicodeDecodeError as exc:
+            raise DemonstrationError(f"{path}: not UTF-8 text ({exc})") from None
+        except csv.Error as exc:
+            raise DemonstrationError(f"{path}, line {reader.line_num}: not a readable CSV row ({exc})") from None
     return rows
 
 

@@ -19,11 +19,13 @@ hand briefly unseen while holding), otherwise not.
 from __future__ import annotations
 
 import csv
+import math
 import os
 
 import cv2
 import numpy as np
 
+from warpskill.contract.demonstration import DemonstrationError
 from warpskill.contract.signals import majority_filter
 
 IN_CONTACT, NO_CONTACT, UNKNOWN = 1, 0, -1
@@ -55,28 +57,40 @@ def read_detections(path: str | os.PathLike, num_frames: int, *, min_score: floa
         (N,) int8 in {UNKNOWN, NO_CONTACT, IN_CONTACT}.
 
     Raises:
-        ValueError: naming the file and line, for a missing column, a frame out of range or
-            repeated, or a value that is not a number / boolean.
+        DemonstrationError: (a ValueError) naming the file and line, for text that is not
+            UTF-8 CSV, a missing column, a frame out of range or repeated, or a value that is
+            not a number / boolean (a score that is not finite).
         FileNotFoundError: ``path`` does not exist.
     """
     detections = np.full(num_frames, UNKNOWN, dtype=np.int8)
     seen = set()
-    with open(path, newline="") as handle:
+    with open(path, newline="", encoding="utf-8-sig") as handle:
         reader = csv.DictReader(handle)
-        missing = {"frame", "in_contact"} - set(reader.fieldnames or ())
-        if missing:
-            raise ValueError(f"{path}: missing column(s) {', '.join(sorted(missing))}; expected frame,in_contact[,score]")
-        for row in reader:
-            where = f"{path}, line {reader.line_num}"
-            frame = _parse(where, "frame", row["frame"], int)
-            if not 0 <= frame < num_frames:
-                raise ValueError(f"{where}: frame {frame} outside 0..{num_frames - 1}")
-            if frame in seen:
-                raise ValueError(f"{where}: frame {frame} listed twice")
-            seen.add(frame)
-            if row.get("score") not in (None, "") and _parse(where, "score", row["score"], float) < min_score:
-                continue
-            detections[frame] = IN_CONTACT if _parse(where, "in_contact", row["in_contact"], _boolean) else NO_CONTACT
+        try:
+            missing = {"frame", "in_contact"} - set(reader.fieldnames or ())
+            if missing:
+                raise DemonstrationError(
+                    f"{path}: missing column(s) {', '.join(sorted(missing))}; expected frame,in_contact[,score]"
+                )
+            for row in reader:
+                where = f"{path}, line {reader.line_num}"
+                frame = _parse(where, "frame", row["frame"], int)
+                if not 0 <= frame < num_frames:
+                    raise DemonstrationError(f"{where}: frame {frame} outside 0..{num_frames - 1}")
+                if frame in seen:
+                    raise DemonstrationError(f"{where}: frame {frame} listed twice")
+                seen.add(frame)
+                if row.get("score") not in (None, ""):
+                    score = _parse(where, "score", row["score"], float)
+                    if not math.isfinite(score):
+                        raise DemonstrationError(f"{where}: column score: expected a finite number, got {row['score']!r}")
+                    if score < min_score:
+                        continue
+                detections[frame] = IN_CONTACT if _parse(where, "in_contact", row["in_contact"], _boolean) else NO_CONTACT
+        except UnicodeDecodeError as exc:
+            raise DemonstrationError(f"{path}: not UTF-8 text ({exc})") from None
+        except csv.Error as exc:
+            raise DemonstrationError(f"{path}, line {reader.line_num}: not a readable CSV row ({exc})") from None
     return detections
 
 
@@ -299,8 +313,8 @@ def _boolean(text: str) -> bool:
 
 
 def _parse(where: str, column: str, text: str | None, kind):
-    """``kind(text)``, or a ValueError naming ``where`` and ``column``."""
+    """``kind(text)``, or a DemonstrationError naming ``where`` and ``column``."""
     try:
         return kind((text or "").strip())
     except ValueError:
-        raise ValueError(f"{where}: column {column}: cannot read {text!r} as {kind.__name__.lstrip('_')}") from None
+        raise DemonstrationError(f"{where}: column {column}: cannot read {text!r} as {kind.__name__.lstrip('_')}") from None

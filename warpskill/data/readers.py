@@ -3,6 +3,7 @@
 - :func:`read_label_images`: a folder of per-frame label images (an index or a colour per
   object), e.g. the output of a video segmenter such as STCN or XMem;
 - :func:`read_mask_folders`: one binary image per object and frame, in per-object folders;
+- :func:`read_masks`: either of the two, as raw (hand, object, static) mask stacks;
 - :func:`read_video_demonstration`: a video file (OpenCV) plus masks in either form; it also
   returns the video's frames, for :func:`warpskill.visual.pictures.save_pictures` ``background=``.
 
@@ -69,6 +70,14 @@ def read_label_images(
             palette), or a mapping without hand and object.
         FileNotFoundError: ``folder`` does not exist or holds no images.
     """
+    hand, obj, static = _label_masks(folder, mapping)
+    return _demonstration(
+        hand, obj, static, fps, contact=contact, camera_K=camera_K, action=action, min_area_fraction=min_area_fraction
+    )
+
+
+def _label_masks(folder, mapping) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """The hand, object and static masks of a folder of label images (see :func:`read_label_images`)."""
     paths = _image_files(folder)
     images = [_read_image(path) for path in paths]
     _check_sizes(paths, images)
@@ -82,10 +91,7 @@ def read_label_images(
     if stray.any():
         k = int(np.flatnonzero(stray.any(axis=(1, 2)))[0])
         raise DemonstrationError(f"{paths[k]}: label {_describe(int(codes[k][stray[k]][0]), colour)} is in no mapping")
-    return _demonstration(
-        channels["hand"][0], channels["object"][0], channels.get("static", []), fps,
-        contact=contact, camera_K=camera_K, action=action, min_area_fraction=min_area_fraction,
-    )
+    return channels["hand"][0], channels["object"][0], channels.get("static", [])
 
 
 def read_mask_folders(
@@ -112,6 +118,14 @@ def read_mask_folders(
             or frame counts between the objects.
         FileNotFoundError: no ``hand/`` or ``object/`` folder, or one without images.
     """
+    hand, obj, static = _folder_masks(folder)
+    return _demonstration(
+        hand, obj, static, fps, contact=contact, camera_K=camera_K, action=action, min_area_fraction=min_area_fraction
+    )
+
+
+def _folder_masks(folder) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """The hand, object and static masks of per-object folders (see :func:`read_mask_folders`)."""
     folder = Path(folder)
     static_dirs = sorted(path for path in folder.glob("static*") if path.is_dir())
     stacks = {}
@@ -124,9 +138,28 @@ def read_mask_folders(
     if len(set(shapes.values())) > 1:
         raise DemonstrationError(f"{folder}: the object folders disagree in (frames, H, W): {shapes}")
     hand, obj, *static = stacks.values()
-    return _demonstration(
-        hand, obj, static, fps, contact=contact, camera_K=camera_K, action=action, min_area_fraction=min_area_fraction
-    )
+    return hand, obj, static
+
+
+def read_masks(
+    folder: str | os.PathLike, *, mapping: dict[str, Label | list[Label]] | None = None
+) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """The raw masks (not cleaned) of per-object folders (:func:`read_mask_folders`, when
+    ``folder/hand/`` exists) or of label images (:func:`read_label_images`).
+
+    Args:
+        folder: the masks' folder.
+        mapping: as :func:`read_label_images` (label images only).
+
+    Returns:
+        (N, H, W) bool hand and object masks and a list of (N, H, W) bool static masks.
+
+    Raises:
+        DemonstrationError, FileNotFoundError: as the two readers.
+    """
+    if (Path(folder) / "hand").is_dir():
+        return _folder_masks(folder)
+    return _label_masks(folder, mapping)
 
 
 def read_video(path: str | os.PathLike) -> tuple[np.ndarray, float]:

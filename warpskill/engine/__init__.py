@@ -1,6 +1,7 @@
 """The differentiable engine: Torch autograd bridges over the Warp kernels, and their references.
 
-Owns the rollout (:func:`simulate`, :mod:`.simulation`), the soft silhouettes
+Owns the rollout (:func:`simulate`, :mod:`.simulation`, over the records :class:`SceneInputs`
+and :class:`Rollout` of :mod:`.records`), the soft silhouettes
 (:func:`render_silhouettes`, :mod:`.rendering`), the scene primitives, the camera's
 projection, the exact NumPy ray cast, small differentiable geometry and rotation helpers,
 and :mod:`.reference` (the plain-Torch oracle and the paper's dopri5 integrator). May
@@ -10,12 +11,14 @@ optimiser, data, robot or tools.
 
 from warpskill.engine.device import resolve_device
 from warpskill.engine.raycast import raycast_masks
+from warpskill.engine.records import Rollout, SceneInputs
 from warpskill.engine.rendering import render_silhouettes
-from warpskill.engine.simulation import PhysicsConfig, Rollout, simulate, substeps_per_frame
+from warpskill.engine.simulation import PhysicsConfig, simulate, substeps_per_frame
 
 __all__ = [
     "PhysicsConfig",
     "Rollout",
+    "SceneInputs",
     "raycast_masks",
     "render_silhouettes",
     "resolve_device",

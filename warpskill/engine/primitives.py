@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 
 from warpskill.engine.projection import camera_rotation
@@ -141,3 +142,30 @@ def prism_planes(vertices: torch.Tensor) -> torch.Tensor:
     centre = vertices.mean(dim=-2, keepdim=True)
     normal = normal * torch.sign(((anchor - centre) * normal).sum(-1, keepdim=True))
     return torch.cat([normal, (normal * anchor).sum(-1, keepdim=True)], dim=-1)
+
+
+def scene_cuboids(scene) -> tuple:
+    """The object and the static cuboids of a per-frame scene, stacked per frame (object first).
+
+    Args:
+        scene: any record with ``object_pos`` (N, 3), ``object_rot`` (N, 3, 3),
+            ``object_size`` (3,), ``static_pos`` (K, 3), ``static_rot`` (K, 3, 3) and
+            ``static_size`` (K, 3), all NumPy arrays or all Torch tensors (a
+            :class:`~warpskill.contract.Reconstruction`, a scene of the optimiser).
+
+    Returns:
+        cuboid_pos (N, 1 + K, 3) [m], cuboid_rot (N, 1 + K, 3, 3), cuboid_size (1 + K, 3) [m],
+        of the inputs' type.
+    """
+    N, K = len(scene.object_pos), len(scene.static_pos)
+    if torch.is_tensor(scene.object_pos):
+        return (
+            torch.cat([scene.object_pos[:, None], scene.static_pos[None].expand(N, K, 3)], dim=1),
+            torch.cat([scene.object_rot[:, None], scene.static_rot[None].expand(N, K, 3, 3)], dim=1),
+            torch.cat([scene.object_size[None], scene.static_size], dim=0),
+        )
+    return (
+        np.concatenate([scene.object_pos[:, None], np.broadcast_to(scene.static_pos, (N, K, 3))], axis=1),
+        np.concatenate([scene.object_rot[:, None], np.broadcast_to(scene.static_rot, (N, K, 3, 3))], axis=1),
+        np.concatenate([scene.object_size[None], scene.static_size], axis=0),
+    )

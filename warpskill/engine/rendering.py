@@ -8,12 +8,10 @@ respect to the projected vertices in closed form.
 
 from __future__ import annotations
 
-import contextlib
 from typing import NamedTuple
 
 import torch
 import warp as wp
-from warpskill.kernels import raster
 
 from warpskill.contract.camera import Intrinsics
 from warpskill.engine.primitives import (
@@ -25,6 +23,8 @@ from warpskill.engine.primitives import (
     prism_planes,
 )
 from warpskill.engine.projection import project, world_to_camera
+from warpskill.engine.warp_bridge import as_warp, warp_scope
+from warpskill.kernels import raster
 
 _MAX_VERTICES = 2 * raster.MAX_SIDES
 _MAX_PLANES = raster.MAX_SIDES + 2
@@ -63,7 +63,7 @@ def render_silhouettes(
         (F, 1 + C, H, W) visible masks in [0, 1], in the dtype of ``hand_pos``: channel 0
         the hand, then the cuboids in order.
     """
-    _validate(
+    check_silhouette_inputs(
         hand_pos, hand_rot, cuboid_pos, cuboid_rot, cuboid_size, camera_height, camera_elevation, intrinsics, sigma
     )
     dtype = hand_pos.dtype
@@ -123,11 +123,11 @@ class _SoftSilhouettes(torch.autograd.Function):
             plane=planes.to(torch.float32).contiguous(),
         )
         mask = torch.zeros(F, P, *image_size, **f32)
-        with _torch_stream(device):
+        with warp_scope(device):
             views = buffers.views()
-            visible = wp.from_torch(visible.to(torch.int32))
-            raster.build_hulls(wp.from_torch(sides), raster.CUTOFF * sigma, visible, *views[:5])
-            raster.rasterize(wp.vec4(*camera_vec), sigma, *views, wp.from_torch(mask))
+            visible = as_warp(visible.to(torch.int32))
+            raster.build_hulls(as_warp(sides), raster.CUTOFF * sigma, visible, *views[:5])
+            raster.rasterize(wp.vec4(*camera_vec), sigma, *views, as_warp(mask))
         ctx.save_for_backward(pixels.detach(), *buffers)
         ctx.camera_vec, ctx.sigma = camera_vec, sigma
         return mask
@@ -137,10 +137,10 @@ class _SoftSilhouettes(torch.autograd.Function):
         pixels, *saved = ctx.saved_tensors
         buffers = _Buffers(*saved)
         moment = torch.zeros(*buffers.hull.shape, 3, dtype=torch.float32, device=pixels.device)
-        with _torch_stream(pixels.device):
-            grad = wp.from_torch(mask_grad.to(torch.float32).contiguous())
+        with warp_scope(pixels.device):
+            grad = as_warp(mask_grad.to(torch.float32))
             raster.rasterize_backward(
-                wp.vec4(*ctx.camera_vec), ctx.sigma, *buffers.views(), grad, wp.from_torch(moment, dtype=wp.vec3)
+                wp.vec4(*ctx.camera_vec), ctx.sigma, *buffers.views(), grad, as_warp(moment, wp.vec3)
             )
         return _vertex_gradients(pixels, buffers.hull, buffers.count, moment), None, None, None, None, None, None
 
@@ -159,13 +159,13 @@ class _Buffers(NamedTuple):
     def views(self) -> list[wp.array]:
         """Zero-copy Warp views."""
         return [
-            wp.from_torch(self.vertices, dtype=wp.vec2),
-            wp.from_torch(self.hull),
-            wp.from_torch(self.count),
-            wp.from_torch(self.line, dtype=wp.vec3),
-            wp.from_torch(self.bound, dtype=wp.vec4),
-            wp.from_torch(self.plane_count),
-            wp.from_torch(self.plane, dtype=wp.vec4),
+            as_warp(self.vertices, wp.vec2),
+            as_warp(self.hull),
+            as_warp(self.count),
+            as_warp(self.line, wp.vec3),
+            as_warp(self.bound, wp.vec4),
+            as_warp(self.plane_count),
+            as_warp(self.plane, wp.vec4),
         ]
 
 
@@ -212,14 +212,7 @@ def _vertex_gradients(
     return grad
 
 
-def _torch_stream(device: torch.device):
-    """Run Warp launches on Torch's current CUDA stream (nothing to do on the CPU)."""
-    if device.type == "cuda":
-        return wp.ScopedStream(wp.stream_from_torch(device))
-    return contextlib.nullcontext()
-
-
-def _validate(
+def check_silhouette_inputs(
     hand_pos, hand_rot, cuboid_pos, cuboid_rot, cuboid_size, camera_height, camera_elevation, intrinsics, sigma
 ) -> None:
     """Raise ValueError on inputs :func:`render_silhouettes` cannot take."""

@@ -9,7 +9,8 @@ checkpoints, batching of many scenes per engine call, and the mask losses. May i
 """
 
 from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.known import KNOWN_LENGTHS, parse_known
 from warpskill.optimizer.pipeline import optimize, optimize_many
 from warpskill.optimizer.weights import LossWeights
 
-__all__ = ["LossWeights", "OptimizeConfig", "optimize", "optimize_many"]
+__all__ = ["KNOWN_LENGTHS", "LossWeights", "OptimizeConfig", "optimize", "optimize_many", "parse_known"]

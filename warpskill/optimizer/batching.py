@@ -20,9 +20,10 @@ from typing import Callable, Hashable, Sequence
 import torch
 
 from warpskill.contract.camera import Intrinsics
+from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.projection import camera_rotation
+from warpskill.engine.records import Rollout, SceneInputs
 from warpskill.engine.rendering import render_silhouettes
-from warpskill.engine.simulation import Rollout
 from warpskill.engine.simulation import simulate as warp_simulate
 from warpskill.optimizer.scene import SceneTrajectories
 
@@ -30,7 +31,8 @@ from warpskill.optimizer.scene import SceneTrajectories
 @dataclass(frozen=True)
 class Backend:
     """The engine under the optimiser: a rollout and a rasterizer with the signatures of
-    :func:`warpskill.engine.simulation.simulate` and :func:`warpskill.engine.rendering.render_silhouettes`.
+    :func:`warpskill.engine.simulation.simulate` (a :class:`~warpskill.engine.records.SceneInputs`
+    and the keyword options) and :func:`warpskill.engine.rendering.render_silhouettes`.
 
     ``warpskill bench speed`` swaps in the plain-Torch references through this.
     """
@@ -56,15 +58,12 @@ def in_camera_frame(scene: SceneTrajectories) -> tuple[torch.Tensor, ...]:
         hand_pos (N, 3), hand_rot (N, 3, 3), cuboid_pos (N, 1 + K, 3), cuboid_rot (N, 1 + K, 3, 3),
         cuboid_size (1 + K, 3): the object first, then the statics.
     """
-    N, K = scene.hand_pos.shape[0], scene.static_pos.shape[0]
     dtype = scene.hand_pos.dtype
     zero = scene.camera_elevation.new_zeros(())
     Q = (camera_rotation(zero) @ camera_rotation(scene.camera_elevation).transpose(-1, -2)).to(dtype)
     centre = torch.stack([zero, zero, scene.camera_height]).to(dtype)
     move = lambda p: (p - centre) @ Q.T  # noqa: E731
-    cuboid_pos = torch.cat([scene.object_pos[:, None], scene.static_pos[None].expand(N, K, 3)], dim=1)
-    cuboid_rot = torch.cat([scene.object_rot[:, None], scene.static_rot[None].expand(N, K, 3, 3)], dim=1)
-    cuboid_size = torch.cat([scene.object_size[None], scene.static_size], dim=0)
+    cuboid_pos, cuboid_rot, cuboid_size = scene_cuboids(scene)
     return move(scene.hand_pos), Q @ scene.hand_rot, move(cuboid_pos), Q @ cuboid_rot, cuboid_size
 
 
@@ -103,28 +102,28 @@ def render_many(
     return out
 
 
-def simulate_many(inputs: Sequence[dict], simulate: Callable = warp_simulate):
-    """Roll out each scene's :meth:`~warpskill.optimizer.stage_b.PhysicalScene.simulation_inputs`,
-    one engine call per group; returns each scene's :class:`~warpskill.engine.simulation.Rollout` (B = 1)
-    over its own frames."""
-    keys = [(x["steps_per_frame"], x["fps"], x["static_pos"].shape[1], x["config"]) for x in inputs]
+def simulate_many(
+    inputs: Sequence[SceneInputs], options: Sequence[dict], simulate: Callable = warp_simulate
+) -> list[Rollout]:
+    """Roll out scenes (B = 1 each), one engine call per group of equal options and K.
+
+    Args:
+        inputs: each scene's :meth:`~warpskill.optimizer.stage_b.PhysicalScene.simulation_inputs`.
+        options: each scene's keyword arguments of ``simulate`` (``steps_per_frame``, ``fps``,
+            ``config``: :meth:`~warpskill.optimizer.stage_b.PhysicalScene.simulation_options`).
+        simulate: the rollout (:attr:`Backend.simulate`).
+
+    Returns:
+        Each scene's :class:`~warpskill.engine.records.Rollout` (B = 1) over its own frames.
+    """
+    keys = [(tuple(sorted(o.items())), x.static_pos.shape[1]) for x, o in zip(inputs, options)]
     out: list[Rollout | None] = [None] * len(inputs)
     for members in groups(keys):
-        steps = [inputs[i]["hand_vel"].shape[1] for i in members]
-        longest = max(steps)
-        batch = {
-            name: torch.cat([
-                torch.nn.functional.pad(inputs[i][name], (0, 0, 0, longest - n)) if name == "hand_vel"
-                else inputs[i][name]
-                for i, n in zip(members, steps)
-            ])
-            for name, value in inputs[members[0]].items()
-            if torch.is_tensor(value)
-        }
-        options = {name: value for name, value in inputs[members[0]].items() if not torch.is_tensor(value)}
-        rollout = simulate(**batch, **options)
-        spf = options["steps_per_frame"]
+        steps = [inputs[i].hand_vel.shape[1] for i in members]
+        group_options = options[members[0]]
+        rollout = simulate(SceneInputs.cat([inputs[i] for i in members]), **group_options)
+        spf = group_options["steps_per_frame"]
         for b, (i, n) in enumerate(zip(members, steps)):
             frames = n // spf + 1
-            out[i] = Rollout(**{name: value[b : b + 1, :frames] for name, value in vars(rollout).items()})
+            out[i] = rollout.map(lambda value: value[b : b + 1, :frames])
     return out

@@ -10,9 +10,10 @@ the best parameters whenever it lowers the learning rate.
 
 from __future__ import annotations
 
+import hashlib
 import os
 from dataclasses import replace
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 import torch
@@ -24,9 +25,10 @@ from warpskill.engine.distances import box_signed_distance
 from warpskill.optimizer.batching import Backend, render_many, simulate_many
 from warpskill.optimizer.checkpoint import Checkpoint, fingerprint
 from warpskill.optimizer.config import OptimizeConfig
-from warpskill.optimizer.inputs import working_inputs
+from warpskill.optimizer.inputs import held_after_contact, working_inputs
+from warpskill.optimizer.known import check_known
 from warpskill.optimizer.loop import minimise
-from warpskill.optimizer.scene import SceneTrajectories
+from warpskill.optimizer.scene import SceneTrajectories, perceptual_loss
 from warpskill.optimizer.stage_a import (
     OBJECT_DEPTH_HYPOTHESES,
     InitialParameters,
@@ -51,6 +53,7 @@ def optimize(
     init_only: bool = False,
     checkpoint: str | os.PathLike | None = None,
     backend: Backend | None = None,
+    known: Mapping[str, float] | None = None,
 ) -> Reconstruction:
     """Reconstruct physically admissible hand and object trajectories from a demonstration.
 
@@ -65,12 +68,16 @@ def optimize(
         checkpoint: a file where the run saves its state and best result as it goes; an
             existing checkpoint of the same demonstration and settings is resumed.
         backend: the rollout and rasterizer (default: the Warp engine).
+        known: lengths known in advance [m], which fix the scene's scale, e.g.
+            ``{"object_height": 0.10}``; names in :data:`warpskill.optimizer.known.KNOWN_LENGTHS`.
+            Both stages hold them exactly (stage (a) through its global scale, stage (b)
+            by not optimising them).
 
     Returns:
         The reconstruction, in the world frame of FORMATS.md, at the video's frames.
     """
     return optimize_many([demo], device=device, iterations=iterations, seed=seed, progress=progress, config=config,
-                         init_only=init_only, checkpoint=checkpoint, backend=backend)[0]
+                         init_only=init_only, checkpoint=checkpoint, backend=backend, known=known)[0]
 
 
 def optimize_many(
@@ -84,6 +91,7 @@ def optimize_many(
     init_only: bool = False,
     checkpoint: str | os.PathLike | None = None,
     backend: Backend | None = None,
+    known: Mapping[str, float] | Sequence[Mapping[str, float] | None] | None = None,
 ) -> list[Reconstruction]:
     """Reconstruct B demonstrations side by side: :func:`optimize` on each, in shared engine calls.
 
@@ -99,6 +107,8 @@ def optimize_many(
         device, iterations, seed, progress, config, init_only, backend: as :func:`optimize`.
         checkpoint: one file for the whole batch (resumed only for the same demonstrations
             and settings).
+        known: as :func:`optimize`, for every demonstration, or a sequence with one
+            mapping (or None) per demonstration.
 
     Returns:
         One reconstruction per demonstration, in order.
@@ -114,9 +124,22 @@ def optimize_many(
     backend = backend or Backend()
     device = resolve_device(device)
     torch.manual_seed(seed)
-    store = Checkpoint(checkpoint, fingerprint(demos, config, seed, backend))
+    if known is None or isinstance(known, Mapping):
+        knowns = [check_known(known)] * len(demos)
+    else:
+        if len(known) != len(demos):
+            raise ValueError(f"known: {len(known)} mappings for {len(demos)} demonstrations")
+        knowns = [check_known(k) for k in known]
+    run_id = fingerprint(demos, config, seed, backend)
+    if any(knowns):
+        run_id = hashlib.sha256((run_id + repr(knowns)).encode()).hexdigest()
+    store = Checkpoint(checkpoint, run_id)
     inputs = [working_inputs(demo, config, device) for demo in demos]
     weights, sigma = config.weights, config.sigma
+    # Frames after the contact signal's end where the object may still be held: stage (a)
+    # leaves them to the masks, stage (b) simulates both endings and the video decides.
+    held = [held_after_contact(given.masks.cpu().numpy(), given.contact_signal) for given in inputs]
+    uncertain = [torch.as_tensor(h, dtype=torch.float32, device=device) if h.any() else None for h in held]
 
     # Stage (a): every demonstration from each object-depth hypothesis; the lower loss wins.
     owners, candidates = [], []
@@ -125,14 +148,14 @@ def optimize_many(
             guess = initial_guess(given.masks.cpu().numpy(), given.contact_signal, given.intrinsics, demo.num_static,
                                   object_depth=hypothesis)
             owners.append(i)
-            candidates.append(InitialParameters(guess).to(device))
+            candidates.append(InitialParameters(guess, knowns[i]).to(device))
 
     def stage_a(live: list[int]) -> list[dict[str, torch.Tensor]]:
         scenes = [candidates[j].scene() for j in live]
         rendered = render_many(scenes, [inputs[owners[j]].intrinsics for j in live], sigma, backend.render)
         return [
             initial_objective(scene, masks, inputs[owners[j]].targets, inputs[owners[j]].contact,
-                              demos[owners[j]].fps, weights)
+                              demos[owners[j]].fps, weights, uncertain[owners[j]])
             for j, scene, masks in zip(live, scenes, rendered)
         ]
 
@@ -152,30 +175,50 @@ def optimize_many(
             reconstructions.append(_reconstruction(demo, fit, grasp, given.contact * (distance < 0), loss))
         return reconstructions
 
-    # Stage (b): the physics.
-    scenes = [make_physical_scene(fit, given.contact_signal, demo.fps, config).to(device)
-              for demo, given, fit in zip(demos, inputs, fits)]
+    # Stage (b): the physics, once per contact hypothesis: the signal as given and, where the
+    # object may still be held after it ends, the signal extended to the video's end; the
+    # ending whose simulation matches the masks better wins.
+    physics_owners, contacts, signals = [], [], []
+    for i, given in enumerate(inputs):
+        variants = [given.contact_signal] + ([given.contact_signal | held[i]] if held[i].any() else [])
+        for signal in variants:
+            physics_owners.append(i)
+            signals.append(signal)
+            contacts.append(torch.as_tensor(signal, dtype=torch.float32, device=device))
+    scenes = [make_physical_scene(fits[i], signal, demos[i].fps, config, knowns[i]).to(device)
+              for i, signal in zip(physics_owners, signals)]
 
     def simulate_scenes(live: list[int]) -> list[PhysicalRollout]:
-        rollouts = simulate_many([scenes[b].simulation_inputs() for b in live], backend.simulate)
+        rollouts = simulate_many([scenes[b].simulation_inputs() for b in live],
+                                 [scenes[b].simulation_options() for b in live], backend.simulate)
         return [scenes[b].assemble(rollout) for b, rollout in zip(live, rollouts)]
 
     def stage_b(live: list[int]) -> list[dict[str, torch.Tensor]]:
         results = simulate_scenes(live)
-        rendered = render_many([r.scene for r in results], [inputs[b].intrinsics for b in live], sigma, backend.render)
+        rendered = render_many([r.scene for r in results], [inputs[physics_owners[b]].intrinsics for b in live],
+                               sigma, backend.render)
         return [
-            physical_objective(result, masks, inputs[b].targets, inputs[b].contact, inputs[b].object_visible, weights)
+            physical_objective(result, masks, inputs[physics_owners[b]].targets, contacts[b],
+                               inputs[physics_owners[b]].object_visible, weights)
             for b, result, masks in zip(live, results, rendered)
         ]
 
     losses = minimise(scenes, stage_b, iterations=config.iterations, learning_rate=config.learning_rate,
                        config=config, progress=progress, label="physics", store=store)
     with torch.no_grad():
-        results = simulate_scenes(list(range(len(demos))))
-    return [
-        _reconstruction(demo, result.scene, result.rollout.grasp, result.rollout.grasped, loss)
-        for demo, result, loss in zip(demos, results, losses)
-    ]
+        everything = list(range(len(scenes)))
+        results = simulate_scenes(everything)
+        rendered = render_many([r.scene for r in results], [inputs[physics_owners[b]].intrinsics for b in everything],
+                               sigma, backend.render)
+        fit = [float(perceptual_loss(masks, inputs[physics_owners[b]].targets, weights))
+               for b, masks in zip(everything, rendered)]
+    reconstructions = []
+    for i, demo in enumerate(demos):
+        b = min((b for b in everything if physics_owners[b] == i), key=lambda b: fit[b])
+        result = results[b]
+        reconstructions.append(_reconstruction(demo, result.scene, result.rollout.grasp, result.rollout.grasped,
+                                               losses[b]))
+    return reconstructions
 
 
 def _reconstruction(

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import torch
 
 from warpskill.contract.camera import Intrinsics
+from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.rendering import render_silhouettes
 from warpskill.engine.rotations import yaw_rotation
 from warpskill.optimizer.losses import MaskTargets, diou_loss
@@ -68,11 +69,7 @@ def perceptual_loss(rendered: torch.Tensor, targets: MaskTargets, weights: LossW
 
 def render_scene(scene: SceneTrajectories, intrinsics: Intrinsics, sigma: float) -> torch.Tensor:
     """Soft visible masks (N, 2 + K, h, w) of a per-frame scene: hand, object, statics."""
-    N = scene.hand_pos.shape[0]
-    K = scene.static_pos.shape[0]
-    cuboid_pos = torch.cat([scene.object_pos[:, None], scene.static_pos[None].expand(N, K, 3)], dim=1)
-    cuboid_rot = torch.cat([scene.object_rot[:, None], scene.static_rot[None].expand(N, K, 3, 3)], dim=1)
-    cuboid_size = torch.cat([scene.object_size[None], scene.static_size], dim=0)
+    cuboid_pos, cuboid_rot, cuboid_size = scene_cuboids(scene)
     return render_silhouettes(
         scene.hand_pos,
         scene.hand_rot,

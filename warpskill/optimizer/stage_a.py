@@ -12,6 +12,7 @@ import numpy as np
 import torch
 
 from warpskill.contract.camera import Intrinsics
+from warpskill.contract.geometry import frame_from_axis
 from warpskill.engine.distances import (
     box_signed_distance,
     lowest_corner_height,
@@ -20,6 +21,7 @@ from warpskill.engine.distances import (
 from warpskill.engine.primitives import HAND_RADIUS
 from warpskill.engine.projection import camera_rotation
 from warpskill.engine.rotations import rotation_from_6d, rotation_to_6d, yaw_rotation
+from warpskill.optimizer.known import measured, pin_sizes
 from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.scene import (
     SceneTrajectories,
@@ -198,7 +200,7 @@ def initial_guess(
         hand_axis[k] = R_wc @ np.array([arm[0], arm[1], -0.5])
     hand_pos = _fill_missing(hand_pos, hand_geom.visible)
     hand_axis = _fill_missing(hand_axis, hand_geom.visible)
-    hand_rot = _frames_from_axes(hand_axis)
+    hand_rot = frame_from_axis(hand_axis)
 
     f = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
     static_size_t = f(np.reshape(static_size, (num_static, 3)))
@@ -218,15 +220,6 @@ def initial_guess(
     )
 
 
-def _frames_from_axes(axes: np.ndarray) -> np.ndarray:
-    """Rotations (N, 3, 3) whose local z is each unit-normalised axis (N, 3)."""
-    z = axes / np.linalg.norm(axes, axis=1, keepdims=True)
-    helper = np.where(np.abs(z[:, 2:3]) < 0.9, np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]]))
-    x = np.cross(helper, z)
-    x /= np.linalg.norm(x, axis=1, keepdims=True)
-    return np.stack([x, np.cross(z, x), z], -1)
-
-
 class InitialParameters(torch.nn.Module):
     """Free per-frame parameters of stage (a), initialised from a :class:`SceneTrajectories`.
 
@@ -235,10 +228,15 @@ class InitialParameters(torch.nn.Module):
     A global scale multiplies every position, size and the camera height: scaling the
     whole scene about the camera changes only the hand's apparent width (its size is
     fixed), a direction too flat for per-frame parameters to follow one by one.
+
+    ``known`` lengths (:data:`warpskill.optimizer.known.KNOWN_LENGTHS` -> metres) replace that
+    scale: it is whatever makes the first of them come out at its value, and the others
+    are put in exactly.
     """
 
-    def __init__(self, guess: SceneTrajectories):
+    def __init__(self, guess: SceneTrajectories, known: dict[str, float] | None = None):
         super().__init__()
+        self.known = dict(known or {})
         P = torch.nn.Parameter
         self.hand_pos = P(guess.hand_pos.clone())
         self.hand_rot6 = P(rotation_to_6d(guess.hand_rot))
@@ -254,19 +252,29 @@ class InitialParameters(torch.nn.Module):
 
     def scene(self) -> SceneTrajectories:
         """The per-frame scene these parameters describe."""
+        object_size = positive(self.object_size_raw, MIN_OBJECT_SIZE)
+        static_size = positive(self.static_size_raw, MIN_STATIC_SIZE)
+        camera_height = positive(self.camera_height_raw, 0.05)
         scale = self.log_scale.exp()
-        static_size = scale * positive(self.static_size_raw, MIN_STATIC_SIZE)
+        for name, value in self.known.items():
+            unscaled = measured(name, object_size, static_size, camera_height)
+            if unscaled is not None:
+                scale = value / unscaled
+                break
+        object_size, static_size, camera_height = pin_sizes(
+            self.known, scale * object_size, scale * static_size, scale * camera_height
+        )
         static_pos, static_rot = static_poses(scale * self.static_xy, self.static_yaw, static_size)
         return SceneTrajectories(
             hand_pos=scale * self.hand_pos,
             hand_rot=rotation_from_6d(self.hand_rot6),
             object_pos=scale * self.object_pos,
             object_rot=yaw_rotation(self.object_yaw),
-            object_size=scale * positive(self.object_size_raw, MIN_OBJECT_SIZE),
+            object_size=object_size,
             static_pos=static_pos,
             static_rot=static_rot,
             static_size=static_size,
-            camera_height=scale * positive(self.camera_height_raw, 0.05),
+            camera_height=camera_height,
             camera_elevation=self.camera_elevation,
         )
 
@@ -288,6 +296,7 @@ def initial_objective(
     contact: torch.Tensor,
     fps: float,
     weights: LossWeights,
+    uncertain: torch.Tensor | None = None,
 ) -> dict[str, torch.Tensor]:
     """Stage (a) loss terms: perceptual, contact distance, smoothness and resting priors.
 
@@ -298,15 +307,19 @@ def initial_objective(
         contact: (N,) contact signal in {0, 1}.
         fps: frame rate [1/s].
         weights: loss weights.
+        uncertain: (N,) 1 in frames whose contact is in doubt (the object may still be held
+            after the signal ends): neither the contact nor the resting priors apply there.
     """
     tip_distance = box_signed_distance(scene.hand_pos, scene.object_pos, scene.object_rot, scene.object_size)
     c = contact.to(tip_distance.dtype)
+    known_state = 1.0 if uncertain is None else 1.0 - uncertain.to(c)
 
     def acceleration(x):  # (N, D) -> mean squared second difference [per s^2]
         return ((x[2:] - 2 * x[1:-1] + x[:-2]) * fps**2).square().sum(-1).mean() if len(x) > 2 else x.sum() * 0
 
     rot6 = rotation_to_6d
-    free = _far_from_contact(c, FREE_MARGIN_FRAMES)
+    free = _far_from_contact(c, FREE_MARGIN_FRAMES) * known_state
+    c = c * known_state
     free_steps = free[1:] * free[:-1]
     moved = ((scene.object_pos[1:] - scene.object_pos[:-1]) * fps).square().sum(-1)
     low = lowest_corner_height(scene.object_pos, scene.object_rot, scene.object_size)

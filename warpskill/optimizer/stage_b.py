@@ -17,14 +17,11 @@ import numpy as np
 import torch
 
 from warpskill.engine.distances import box_signed_distance
+from warpskill.engine.records import Rollout, SceneInputs
 from warpskill.engine.rotations import rotation_from_6d, rotation_log, rotation_to_6d
-from warpskill.engine.simulation import (
-    PhysicsConfig,
-    Rollout,
-    simulate,
-    substeps_per_frame,
-)
+from warpskill.engine.simulation import PhysicsConfig, simulate, substeps_per_frame
 from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.known import pin_sizes
 from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.scene import (
     SceneTrajectories,
@@ -70,6 +67,7 @@ class PhysicalScene(torch.nn.Module):
         pre_roll, post_roll: still time [s] simulated before and after the video.
         grasp_level: |g| [m] the grasp signal starts at, positive in contact frames.
         physics: engine constants.
+        known: lengths held at their values (:data:`warpskill.optimizer.known.KNOWN_LENGTHS`).
     """
 
     def __init__(
@@ -83,8 +81,10 @@ class PhysicalScene(torch.nn.Module):
         post_roll: float,
         grasp_level: float,
         physics: PhysicsConfig,
+        known: dict[str, float] | None = None,
     ):
         super().__init__()
+        self.known = dict(known or {})
         self.physics = physics
         self.fps = float(fps)
         self.num_frames = N = fit.hand_pos.shape[0]
@@ -180,19 +180,27 @@ class PhysicalScene(torch.nn.Module):
 
     def cuboids(self) -> tuple[torch.Tensor, ...]:
         """Object size (3,), static centres (K, 3), rotations (K, 3, 3) and sizes (K, 3)."""
-        static_size = positive(self.static_size_raw, MIN_STATIC_SIZE)
+        object_size, static_size, _ = pin_sizes(
+            self.known, positive(self.object_size_raw, MIN_OBJECT_SIZE), positive(self.static_size_raw, MIN_STATIC_SIZE),
+            self.camera_height(),
+        )
         static_pos, static_rot = static_poses(self.static_xy, self.static_yaw, static_size)
-        return positive(self.object_size_raw, MIN_OBJECT_SIZE), static_pos, static_rot, static_size
+        return object_size, static_pos, static_rot, static_size
 
-    def simulation_inputs(self) -> dict:
-        """Keyword arguments of :func:`warpskill.engine.simulation.simulate` for this scene (B = 1):
-        pre-roll, the video, post-roll."""
+    def camera_height(self) -> torch.Tensor:
+        """The camera's height [m] (the known one, when given)."""
+        height = positive(self.camera_height_raw, 0.05)
+        return height * 0 + self.known["camera_height"] if "camera_height" in self.known else height
+
+    def simulation_inputs(self) -> SceneInputs:
+        """The rollout inputs of this scene (B = 1): pre-roll, the video, post-roll; simulate
+        them with :meth:`simulation_options`."""
         object_size, static_pos, static_rot, static_size = self.cuboids()
         spf = self.steps_per_frame
         main_velocity = self.step_basis @ self.control  # (S, 7)
         still = lambda frames: main_velocity.new_zeros(frames * spf, 7)  # noqa: E731
         hand_velocity = torch.cat([still(self.pre_frames), main_velocity, still(self.post_frames)])
-        return dict(
+        return SceneInputs(
             hand_pos0=self.hand_pos0[None],
             hand_rot0=rotation_from_6d(self.hand_rot6)[None],
             grasp0=self.grasp0.reshape(1),
@@ -203,16 +211,18 @@ class PhysicalScene(torch.nn.Module):
             static_pos=static_pos[None],
             static_rot=static_rot[None],
             static_size=static_size[None],
-            steps_per_frame=spf,
-            fps=self.fps,
-            config=self.physics,
         )
+
+    def simulation_options(self) -> dict:
+        """The keyword arguments ``steps_per_frame``, ``fps`` [1/s] and ``config`` of
+        :func:`warpskill.engine.simulation.simulate` for this scene."""
+        return dict(steps_per_frame=self.steps_per_frame, fps=self.fps, config=self.physics)
 
     def assemble(self, out: Rollout) -> PhysicalRollout:
         """This scene's :class:`PhysicalRollout` from the rollout (B = 1) of its :meth:`simulation_inputs`."""
         object_size, static_pos, static_rot, static_size = self.cuboids()
         video = slice(self.pre_frames, self.pre_frames + self.num_frames)
-        rollout = Rollout(**{name: value[0, video] for name, value in vars(out).items()})
+        rollout = out.map(lambda value: value[0, video])
         speed = out.object_vel[0].square().sum(-1) + out.object_ang_vel[0].square().sum(-1)
         still_velocity = torch.cat([speed[: self.pre_frames + 1], speed[self.pre_frames + self.num_frames :]])
         frame_velocity = self.frame_basis @ self.control
@@ -225,18 +235,21 @@ class PhysicalScene(torch.nn.Module):
             static_pos=static_pos,
             static_rot=static_rot,
             static_size=static_size,
-            camera_height=positive(self.camera_height_raw, 0.05),
+            camera_height=self.camera_height(),
             camera_elevation=self.camera_elevation,
         )
         return PhysicalRollout(scene, rollout, still_velocity, frame_velocity[:, :6].square().sum(-1))
 
     def forward(self, simulate=simulate) -> PhysicalRollout:
         """Simulate the scene (pre-roll, the video, post-roll) with ``simulate`` (default: the Warp engine)."""
-        return self.assemble(simulate(**self.simulation_inputs()))
+        return self.assemble(simulate(self.simulation_inputs(), **self.simulation_options()))
 
 
-def make_physical_scene(fit: SceneTrajectories, contact_signal: np.ndarray, fps: float, config: OptimizeConfig) -> PhysicalScene:
-    """Stage (b)'s parameters started from the per-frame scene ``fit`` (on the CPU)."""
+def make_physical_scene(
+    fit: SceneTrajectories, contact_signal: np.ndarray, fps: float, config: OptimizeConfig,
+    known: dict[str, float] | None = None,
+) -> PhysicalScene:
+    """Stage (b)'s parameters started from the per-frame scene ``fit`` (on the CPU), ``known`` lengths held."""
     return PhysicalScene(
         fit,
         contact_signal,
@@ -246,6 +259,7 @@ def make_physical_scene(fit: SceneTrajectories, contact_signal: np.ndarray, fps:
         post_roll=config.post_roll,
         grasp_level=2.0 * config.weights.grasp_margin,
         physics=config.physics,
+        known=known,
     )
 
 

@@ -1,4 +1,9 @@
-"""Robot re-targeting: a Franka Panda performs the reconstructed manipulation (issue 5).
+"""The robot: a Franka Panda performs the reconstructed manipulation.
+
+Owns the Panda model and its scene, the grasp poses, retargeting (placo) and the MuJoCo and
+Newton replays. May import :mod:`warpskill.contract` (it depends on the reconstruction file,
+never on the optimiser's or the engine's internals) and :mod:`warpskill.visual`'s media
+writers; placo, MuJoCo and Newton are optional (extra ``robot``) and imported on first use.
 
 - :func:`retarget`: reconstruction -> :class:`RobotPlan` (placo differential IK).
 - :func:`replay`: simulate a plan in MuJoCo or Newton -> :class:`Replay` (the simulated
@@ -17,8 +22,15 @@ _EXPORTS = {
     "RobotPlan": "plan",
     "PlanError": "plan",
     "Placement": "model",
+    "rank_placements": "placement",
+    "fit_sizes": "sizes",
     "replay": "replaying",
     "Replay": "replaying",
+    "prefer_headless_gl": "video",
+    "record": "video",
+    "link_poses": "kinematics",
+    "link_shapes": "kinematics",
+    "LinkShape": "kinematics",
 }
 
 __all__ = sorted(_EXPORTS)

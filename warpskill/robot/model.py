@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from warpskill.contract.reconstruction import Reconstruction
+from warpskill.robot.scene_config import load_scene_config
 
 ARM_JOINTS: tuple[str, ...] = tuple(f"panda_joint{i}" for i in range(1, 8))
 """The seven arm joints, base to wrist."""
@@ -38,8 +39,8 @@ MAX_OPENING = 0.08
 FINGER_SPEED = 0.2
 """Largest speed [m/s] of each finger (the URDF's limit)."""
 
-TABLE_SIZE = np.array([1.6, 1.6, 0.05])
-"""Edge lengths [m] of the table box; its top is the world plane z = 0."""
+TABLE_SIZE = np.array(load_scene_config().table.size)
+"""Edge lengths [m] of the table box (``table.size`` of ``assets/robot_scene.toml``); its top is the world plane z = 0."""
 
 _PACKAGE_PREFIX = "package://example-robot-data/robots/"
 
@@ -128,12 +129,13 @@ def make_scene(recon: Reconstruction, placement: Placement | None = None, *, bas
         base[:3, :3] = rot
         base[:2, 3] = centre - rot[:2, :2] @ np.asarray(placement.offset, float)
     # The table spans the base and the scene, with margin around both.
+    table_size = np.array(load_scene_config().table.size)
     table_xy = 0.5 * (base[:2, 3] + centre)
-    table_pos = np.array([table_xy[0], table_xy[1], -TABLE_SIZE[2] / 2])
+    table_pos = np.array([table_xy[0], table_xy[1], -table_size[2] / 2])
     return Scene(
         base=base,
         table_pos=table_pos,
-        table_size=TABLE_SIZE.copy(),
+        table_size=table_size,
         object_pos=recon.object_pos[0].copy(),
         object_rot=recon.object_rot[0].copy(),
         object_size=recon.object_size.copy(),

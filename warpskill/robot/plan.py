@@ -16,6 +16,14 @@ Keys of the plan ``.npz`` (units: seconds, radians, metres):
 | ``grasp_name`` | () str | its name (e.g. ``top_x``, ``push_-x``) |
 | ``grasp_kind`` | () str | ``grasp`` (closes on the object) or ``push`` (closed fingers press it) |
 | ``action`` | () str | the reconstruction's action |
+| ``offset``, ``yaw`` | (2,), () | the placement: scene centre in the base frame [m], the base's heading [rad] |
+| ``placement`` | () str | ``auto`` (searched) or ``given`` |
+| ``object_size``, ``object_pos``, ``object_rot`` | (3,), (F, 3), (F, 3, 3) | the object the robot handles: its size, centre path and (upright) rotations (reconstruction frames) |
+| ``static_size``, ``static_pos`` | (K, 3), (K, 3) | the static cuboids the robot works with |
+| ``note`` | () str | what was changed for the robot (a substituted object), or empty |
+
+The sizes and poses are those the replays simulate (:meth:`RobotPlan.scene`); plans
+without them (older files) replay the reconstruction's.
 
 The CSV has one row per sample: ``t, q1..q7, gripper, phase`` where ``phase`` is
 ``approach``, ``grasp``, ``hold``, ``release`` or ``retreat``.
@@ -54,6 +62,15 @@ class RobotPlan:
     grasp_kind: str
     action: str
     planning_time: float = float("nan")
+    offset: np.ndarray | None = None
+    yaw: float = float("nan")
+    placement: str = ""
+    object_size: np.ndarray | None = None
+    object_pos: np.ndarray | None = None
+    object_rot: np.ndarray | None = None
+    static_size: np.ndarray | None = None
+    static_pos: np.ndarray | None = None
+    note: str = ""
 
     @property
     def num_samples(self) -> int:
@@ -65,20 +82,35 @@ class RobotPlan:
         """Sample period [s]."""
         return float(self.t[1] - self.t[0])
 
+    def scene(self, recon):
+        """``recon`` with the cuboids the plan was made for (the sizes and heights it handles)."""
+        if self.object_size is None:
+            return recon
+        changes = {name: np.asarray(getattr(self, name), float) for name in
+                   ("object_size", "object_pos", "object_rot", "static_size", "static_pos")
+                   if getattr(self, name) is not None}
+        for name in ("object_pos", "object_rot"):
+            if name in changes and len(changes[name]) != recon.num_frames:
+                changes.pop(name)
+        same = all(np.shape(value) == np.shape(getattr(recon, name)) and np.allclose(value, getattr(recon, name))
+                   for name, value in changes.items())
+        return recon if same else dataclasses.replace(recon, **changes)
+
     def phases(self) -> np.ndarray:
         """(T,) phase name of each sample: approach, grasp, hold, release, retreat."""
         phase = np.full(self.num_samples, "approach", dtype=object)
         if np.isfinite(self.grasp_time):
             phase[self.t >= self.grasp_time] = "grasp"
-            phase[self.t >= self.grasp_time + _CLOSE_TIME] = "hold"
+            phase[self.t >= self.grasp_time + CLOSE_TIME] = "hold"
         if np.isfinite(self.release_time):
             phase[self.t >= self.release_time] = "release"
-            phase[self.t >= self.release_time + _OPEN_TIME] = "retreat"
+            phase[self.t >= self.release_time + OPEN_TIME] = "retreat"
         return phase
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the plan ``.npz`` atomically to ``path``."""
-        arrays = {field.name: np.asarray(getattr(self, field.name)) for field in dataclasses.fields(self)}
+        arrays = {field.name: np.asarray(getattr(self, field.name)) for field in dataclasses.fields(self)
+                  if getattr(self, field.name) is not None}
         save_npz_atomic(path, arrays)
 
     def save_csv(self, path: str | os.PathLike) -> None:
@@ -98,7 +130,8 @@ class RobotPlan:
         """
         arrays = read_npz(path, PlanError)
         names = [field.name for field in dataclasses.fields(cls)]
-        missing = [name for name in names if name not in arrays and name != "planning_time"]
+        optional = {field.name for field in dataclasses.fields(cls) if field.default is not dataclasses.MISSING}
+        missing = [name for name in names if name not in arrays and name not in optional]
         if missing:
             raise PlanError(f"{path}: not a robot plan, missing key(s) {', '.join(missing)}")
         kwargs = {}
@@ -106,13 +139,13 @@ class RobotPlan:
             if name not in arrays:
                 continue
             value = arrays[name]
-            if name in ("grasp_name", "grasp_kind", "action"):
+            if name in ("grasp_name", "grasp_kind", "action", "placement", "note"):
                 value = str(value)
-            elif value.ndim == 0:
+            elif value.ndim == 0 and name != "offset":
                 value = float(value)
             kwargs[name] = value
         return cls(**kwargs)
 
 
-_CLOSE_TIME = 0.6  # [s] the gripper closes (and the arm waits) at the grasp
-_OPEN_TIME = 0.5  # [s] the gripper opens (and the arm waits) at the release
+CLOSE_TIME = 0.6  # [s] the gripper closes (and the arm waits) at the grasp
+OPEN_TIME = 0.5  # [s] the gripper opens (and the arm waits) at the release

@@ -4,7 +4,9 @@ The arm joints track the plan's joint positions (interpolated linearly at every 
 step) with stiff position actuators and gravity compensation; each finger has a position
 actuator whose force is capped at :data:`GRIP_FORCE`, so a closed command squeezes the
 object. The manipulated cuboid is a free body with :data:`OBJECT_MASS` and
-:data:`FRICTION`; the table and static cuboids are fixed boxes.
+:data:`FRICTION`; the table and static cuboids are fixed boxes. Every value (and the
+video's lights and colours, which change no physics) comes from the scene description
+``assets/robot_scene.toml`` (:func:`~warpskill.robot.scene_config.load_scene_config`).
 """
 
 from __future__ import annotations
@@ -21,14 +23,17 @@ from warpskill.robot.model import (
     mujoco_urdf,
 )
 from warpskill.robot.plan import RobotPlan
+from warpskill.robot.scene_config import load_scene_config
 
-TIMESTEP = 0.002  # [s]
-OBJECT_MASS = 0.2  # [kg]
-FRICTION = 1.0  # sliding friction coefficient of every contact
-GRIP_FORCE = 40.0  # [N] per finger
-ARM_KP = np.array([4500.0, 4500.0, 3500.0, 3500.0, 2000.0, 2000.0, 2000.0])  # [N m / rad]
-ARM_KV = 0.1 * ARM_KP  # [N m s / rad]
-FINGER_KP = 2000.0  # [N / m]
+# The scene description's values under their former names (read-only aliases).
+_CONFIG = load_scene_config()
+TIMESTEP = _CONFIG.mujoco.timestep  # [s]
+OBJECT_MASS = _CONFIG.object.mass  # [kg]
+FRICTION = _CONFIG.contact.friction  # sliding friction coefficient of every contact
+GRIP_FORCE = _CONFIG.panda.grip_force  # [N] per finger
+ARM_KP = np.array(_CONFIG.panda.arm_kp)  # [N m / rad]
+ARM_KV = _CONFIG.panda.arm_kv  # [N m s / rad]
+FINGER_KP = _CONFIG.panda.finger_kp  # [N / m]
 
 
 def _quat(R: np.ndarray) -> np.ndarray:
@@ -40,48 +45,76 @@ def _quat(R: np.ndarray) -> np.ndarray:
 
 
 def build_model(plan: RobotPlan, recon: Reconstruction):
-    """The compiled ``mujoco.MjModel`` of the plan's scene (robot base at ``plan.base``)."""
+    """The compiled ``mujoco.MjModel`` of the plan's scene (robot base at ``plan.base``).
+
+    Its options, contacts, drives and colours, and the video's lights, backdrop and
+    offscreen frame size, are those of :func:`~warpskill.robot.scene_config.load_scene_config`.
+    """
+    recon = plan.scene(recon)  # the cuboids as the plan handles them (sizes, heights)
     import mujoco
 
+    config = load_scene_config()
+    panda, contact = config.panda, config.contact
     spec = mujoco.MjSpec.from_string(mujoco_urdf())
-    spec.option.timestep = TIMESTEP
-    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
-    spec.option.impratio = 10.0
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.timestep = config.mujoco.timestep
+    spec.option.cone = getattr(mujoco.mjtCone, "mjCONE_" + config.mujoco.cone.upper())
+    spec.option.impratio = config.mujoco.impratio
+    spec.option.integrator = getattr(mujoco.mjtIntegrator, "mjINT_" + config.mujoco.integrator.upper())
     base = spec.body("panda_link0")
     base.pos = plan.base[:3, 3]
     base.quat = _quat(plan.base[:3, :3])
     for body in spec.bodies:
         if body.name.startswith("panda_"):
-            body.gravcomp = 1.0
+            body.gravcomp = 1.0 if panda.gravity_compensation else 0.0
     for geom in spec.geoms:  # robot geoms touch the scene, not each other (the plan avoids self-collision)
-        geom.friction = [FRICTION, 0.005, 0.0001]
-        geom.condim = 4
+        geom.friction = contact.mujoco_friction
+        geom.condim = contact.condim
         geom.contype, geom.conaffinity = 2, 1
+        geom.rgba = panda.rgba
     for name in ARM_JOINTS:
         joint = spec.joint(name)
-        joint.armature = 0.1
-        joint.damping = [1.0, 0.0, 0.0]
+        joint.armature = panda.arm_armature
+        joint.damping = [panda.arm_damping, 0.0, 0.0]
     for name in FINGER_JOINTS:
-        spec.joint(name).damping = [5.0, 0.0, 0.0]
+        spec.joint(name).damping = [panda.finger_damping, 0.0, 0.0]
     world = spec.worldbody
     scene = make_scene(recon, base=plan.base)
     for name, T, size in environment_boxes(scene):
         world.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=size / 2, pos=T[:3, 3], quat=_quat(T[:3, :3]),
-                       friction=[FRICTION, 0.005, 0.0001], condim=4, contype=1, conaffinity=3,
-                       rgba=[0.6, 0.5, 0.4, 1.0])
+                       friction=contact.mujoco_friction, condim=contact.condim, contype=1, conaffinity=3,
+                       rgba=config.table.rgba if name == "table" else config.static.rgba)
     obj = world.add_body(name="object", pos=recon.object_pos[0], quat=_quat(recon.object_rot[0]))
     obj.add_freejoint(name="object_free")
-    obj.add_geom(name="object", type=mujoco.mjtGeom.mjGEOM_BOX, size=recon.object_size / 2, mass=OBJECT_MASS,
-                 friction=[FRICTION, 0.005, 0.0001], condim=4, contype=1, conaffinity=3,
-                 rgba=[0.2, 0.4, 0.9, 1.0])
+    obj.add_geom(name="object", type=mujoco.mjtGeom.mjGEOM_BOX, size=recon.object_size / 2, mass=config.object.mass,
+                 friction=contact.mujoco_friction, condim=contact.condim, contype=1, conaffinity=3,
+                 rgba=config.object.rgba)
     spec.add_exclude(bodyname1="panda_link0", bodyname2="world")
     spec.add_exclude(bodyname1="panda_link1", bodyname2="world")
+    kv = panda.arm_kv
     for i, name in enumerate(ARM_JOINTS):
-        _position_actuator(spec, name, ARM_KP[i], ARM_KV[i], 87.0 if i < 4 else 12.0)
+        _position_actuator(spec, name, panda.arm_kp[i], kv[i], panda.arm_torque_limit[i])
     for name in FINGER_JOINTS:
-        _position_actuator(spec, name, FINGER_KP, 50.0, GRIP_FORCE)
+        _position_actuator(spec, name, panda.finger_kp, panda.finger_kv, panda.grip_force)
+    _add_visuals(spec, config.video)
     return spec.compile()
+
+
+def _add_visuals(spec, video) -> None:
+    """The video's lights, backdrop and offscreen frame size (no effect on the physics)."""
+    import mujoco
+
+    for k, light in enumerate(video.lights):
+        spec.worldbody.add_light(name=f"light{k}", type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+                                 pos=-2.0 * np.asarray(light.direction), dir=light.direction,
+                                 diffuse=light.diffuse, specular=light.specular, castshadow=light.castshadow)
+    spec.add_texture(name="backdrop", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+                     builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=video.background, rgb2=[1.0, 1.0, 1.0],
+                     width=256, height=1536)
+    headlight = spec.visual.headlight
+    headlight.ambient, headlight.diffuse, headlight.specular = (video.headlight.ambient, video.headlight.diffuse,
+                                                                 video.headlight.specular)
+    spec.visual.global_.offwidth = max(spec.visual.global_.offwidth, video.width)
+    spec.visual.global_.offheight = max(spec.visual.global_.offheight, video.height)
 
 
 def _position_actuator(spec, joint: str, kp: float, kv: float, force: float) -> None:
@@ -120,12 +153,13 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, video
     obj_body = model.body("object").id
     obj_geom = model.geom("object").id
     finger_bodies = {model.body("panda_leftfinger").id, model.body("panda_rightfinger").id}
-    steps = int(np.ceil(times[-1] / TIMESTEP)) + 1
+    timestep = model.opt.timestep
+    steps = int(np.ceil(times[-1] / timestep)) + 1
     out = {"tcp": [], "object_pos": [], "object_rot": [], "held": [], "q": []}
     k = 0
     renderer = video.start(model) if video is not None else None
     for step in range(steps):
-        t = step * TIMESTEP
+        t = step * timestep
         while k < len(times) and times[k] <= t + 1e-9:
             T = np.eye(4)
             T[:3, :3] = data.xmat[tcp_body].reshape(3, 3)

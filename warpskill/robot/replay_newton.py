@@ -35,6 +35,10 @@ pushed cuboid from MuJoCo's path (12 cm instead of 6 cm on the synthetic pushes)
 the 2 ms step. On two CPU cores a step takes about 3 ms (mostly kernel-launch overhead), a
 replay about 1.5 s of wall time per simulated second; the drive targets are uploaded once
 and the host reads the state back only at the sampled frames.
+
+Every value (the scene's, the drives', the solver's) comes from the scene description
+``assets/robot_scene.toml`` that the MuJoCo replay reads too
+(:func:`~warpskill.robot.scene_config.load_scene_config`).
 """
 
 from __future__ import annotations
@@ -52,26 +56,20 @@ from warpskill.robot.model import (
     panda_urdf,
 )
 from warpskill.robot.plan import RobotPlan
-from warpskill.robot.replay_mujoco import (
-    ARM_KP,
-    ARM_KV,
-    FINGER_KP,
-    FRICTION,
-    GRIP_FORCE,
-    OBJECT_MASS,
-)
+from warpskill.robot.scene_config import load_scene_config
 
-TIMESTEP = 0.002  # [s], as MuJoCo's
-ITERATIONS = 12  # projected Gauss-Seidel iterations per step
-CONTACT_GAP = 0.005  # [m] distance at which contacts are detected
-ROW_CAPACITY = 256  # constraint rows of the robot per step (its contacts, joint limits; 128 overflowed once)
-LIMIT_GAP = 0.05  # [rad or m] a joint limit's row is created this close to it
-# The MuJoCo replay's actuator and joint constants.
-ARM_EFFORT = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])  # [N m] torque limits of the arm drives
-ARM_ARMATURE = 0.1  # [kg m^2]
-ARM_DAMPING = 1.0  # [N m s / rad]
-FINGER_KV = 50.0  # [N s / m]
-FINGER_DAMPING = 5.0  # [N s / m]
+# The scene description's values under their former names (read-only aliases).
+_CONFIG = load_scene_config()
+TIMESTEP = _CONFIG.newton.timestep  # [s], as MuJoCo's
+ITERATIONS = _CONFIG.newton.iterations  # projected Gauss-Seidel iterations per step
+CONTACT_GAP = _CONFIG.newton.contact_gap  # [m] distance at which contacts are detected
+ROW_CAPACITY = _CONFIG.newton.row_capacity  # constraint rows of the robot per step (its contacts, joint limits)
+LIMIT_GAP = _CONFIG.newton.limit_gap  # [rad or m] a joint limit's row is created this close to it
+ARM_EFFORT = np.array(_CONFIG.panda.arm_torque_limit)  # [N m] torque limits of the arm drives
+ARM_ARMATURE = _CONFIG.panda.arm_armature  # [kg m^2]
+ARM_DAMPING = _CONFIG.panda.arm_damping  # [N m s / rad]
+FINGER_KV = _CONFIG.panda.finger_kv  # [N s / m]
+FINGER_DAMPING = _CONFIG.panda.finger_damping  # [N s / m]
 # Links standing on (or just above) the table: their contacts with the environment are not simulated
 # (panda_link0 is merged into the world when the fixed joints are collapsed).
 _BASE_LINKS = ("panda_link0", "panda_link1")
@@ -116,10 +114,13 @@ def build_model(plan: RobotPlan, recon: Reconstruction, *, device: str | None = 
         ``joint_target_q`` indices), ``tcp_body``, ``object_body``, ``object_shape``,
         ``finger_bodies``, ``robot_bodies``.
     """
+    recon = plan.scene(recon)  # the cuboids as the plan handles them (sizes, heights)
     import newton
 
+    config = load_scene_config()
+    panda, friction, gap = config.panda, config.contact.friction, config.newton.contact_gap
     builder = newton.ModelBuilder()
-    builder.default_shape_cfg = newton.ModelBuilder.ShapeConfig(mu=FRICTION, gap=CONTACT_GAP)
+    builder.default_shape_cfg = newton.ModelBuilder.ShapeConfig(mu=friction, gap=gap)
     text = re.sub(r"<visual>.*?</visual>", "", panda_urdf(collision="meshes"), flags=re.S)
     text = re.sub(r"<mimic[^>]*/>", "", text)  # each finger has its own drive, as in MuJoCo
     builder.add_urdf(text, xform=_transform(plan.base), floating=False, enable_self_collisions=False,
@@ -128,11 +129,11 @@ def build_model(plan: RobotPlan, recon: Reconstruction, *, device: str | None = 
     coords = [builder.joint_q_start[j] for j in joints]
     dofs = [builder.joint_qd_start[j] for j in joints]
     q0 = np.concatenate([plan.q[0], [plan.gripper[0] / 2] * 2])
-    ke = np.concatenate([ARM_KP, [FINGER_KP] * 2])
-    kd = np.concatenate([ARM_KV, [FINGER_KV] * 2])
-    effort = np.concatenate([ARM_EFFORT, [GRIP_FORCE] * 2])
-    armature = [ARM_ARMATURE] * 7 + [0.0] * 2
-    damping = [ARM_DAMPING] * 7 + [FINGER_DAMPING] * 2
+    ke = np.concatenate([panda.arm_kp, [panda.finger_kp] * 2])
+    kd = np.concatenate([panda.arm_kv, [panda.finger_kv] * 2])
+    effort = np.concatenate([panda.arm_torque_limit, [panda.grip_force] * 2])
+    armature = [panda.arm_armature] * 7 + [0.0] * 2
+    damping = [panda.arm_damping] * 7 + [panda.finger_damping] * 2
     for i, (coord, dof) in enumerate(zip(coords, dofs)):
         builder.joint_q[coord] = builder.joint_target_q[coord] = float(q0[i])
         builder.joint_target_mode[dof] = int(newton.JointTargetMode.POSITION)
@@ -147,7 +148,7 @@ def build_model(plan: RobotPlan, recon: Reconstruction, *, device: str | None = 
     base_shapes = [s for s, b in enumerate(builder.shape_body) if b in base_bodies]
 
     scene = make_scene(recon, base=plan.base)
-    env_cfg = newton.ModelBuilder.ShapeConfig(mu=FRICTION, gap=CONTACT_GAP)
+    env_cfg = newton.ModelBuilder.ShapeConfig(mu=friction, gap=gap)
     for name, T, size in environment_boxes(scene):
         hx, hy, hz = (float(v) for v in size / 2)
         shape = builder.add_shape_box(-1, xform=_transform(T), hx=hx, hy=hy, hz=hz, cfg=env_cfg, label=name)
@@ -157,8 +158,7 @@ def build_model(plan: RobotPlan, recon: Reconstruction, *, device: str | None = 
     T0[:3, :3] = recon.object_rot[0]
     T0[:3, 3] = recon.object_pos[0]
     size = np.asarray(recon.object_size, dtype=float)
-    obj_cfg = newton.ModelBuilder.ShapeConfig(mu=FRICTION, gap=CONTACT_GAP,
-                                              density=OBJECT_MASS / float(np.prod(size)))
+    obj_cfg = newton.ModelBuilder.ShapeConfig(mu=friction, gap=gap, density=config.object.mass / float(np.prod(size)))
     obj = builder.add_body(xform=_transform(T0), label="object")
     hx, hy, hz = (float(v) for v in size / 2)
     obj_shape = builder.add_shape_box(obj, hx=hx, hy=hy, hz=hz, cfg=obj_cfg, label="object")
@@ -201,11 +201,14 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, devic
             state.body_f.assign(wrench)
         pipeline = newton.CollisionPipeline(model, reduce_contacts=False)
         contacts = pipeline.contacts()
-        solver = newton.solvers.SolverSteel(model, iterations=ITERATIONS, articulation_constraint_max=ROW_CAPACITY,
-                                            enable_joint_limits=True, joint_limit_activation_gap=LIMIT_GAP)
+        options = load_scene_config().newton
+        solver = newton.solvers.SolverSteel(model, iterations=options.iterations,
+                                            articulation_constraint_max=options.row_capacity,
+                                            enable_joint_limits=True, joint_limit_activation_gap=options.limit_gap)
         # The drive targets of every step, uploaded once: a step copies its row on the device.
-        steps = int(np.ceil(times[-1] / TIMESTEP)) + 1
-        t = np.arange(steps) * TIMESTEP
+        timestep = options.timestep
+        steps = int(np.ceil(times[-1] / timestep)) + 1
+        t = np.arange(steps) * timestep
         targets = np.tile(model.joint_target_q.numpy(), (steps, 1))
         for i, coord in enumerate(info["arm_coords"]):
             targets[:, coord] = np.interp(t, plan.t, plan.q[:, i])
@@ -232,7 +235,7 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, devic
                 if k >= len(times):
                     break
             wp.copy(control.joint_target_q, targets, dest_offset=0, src_offset=step * width, count=width)
-            solver.step(state_0, state_1, control, contacts, TIMESTEP)
+            solver.step(state_0, state_1, control, contacts, timestep)
             state_0, state_1 = state_1, state_0
     return {key: np.asarray(value) for key, value in out.items()}
 

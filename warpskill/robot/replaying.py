@@ -11,13 +11,13 @@ both fingers touch the object, the ``object_*`` fields the simulated object.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 
 import numpy as np
 
-from warpskill.contract.evaluation import Evaluation, evaluate
+from warpskill.contract.evaluation import evaluate
 from warpskill.contract.reconstruction import Reconstruction
+from warpskill.contract.replay import Replay
 from warpskill.robot.plan import RobotPlan
 
 ENGINES: tuple[str, ...] = ("mujoco", "newton")
@@ -25,46 +25,13 @@ GRASP_LEVEL = 0.02  # [m] |grasp| written for the gripper command
 _TCP_TO_HAND = np.diag([1.0, -1.0, -1.0])  # TCP frame (z towards the object) -> hand frame (z towards the arm)
 
 
-@dataclasses.dataclass
-class Replay:
-    """The outcome of :func:`replay`.
-
-    Attributes:
-        reconstruction: the replayed motion (gripper and simulated object).
-        evaluation: the paper's criteria applied to it.
-        engine: ``mujoco`` or ``newton``.
-        replay_time: wall-clock time [s] of the simulation.
-        joints: (F, 7) simulated arm joint positions at the sampled frames.
-    """
-
-    reconstruction: Reconstruction
-    evaluation: Evaluation
-    engine: str
-    replay_time: float
-    joints: np.ndarray
-
-    @property
-    def success(self) -> bool:
-        """Whether the replayed motion achieves the action."""
-        return self.evaluation.success
-
-    def save(self, path) -> None:
-        """Write ``replay.npz``: the reconstruction keys of FORMATS.md plus ``success`` and ``engine``."""
-        from warpskill.contract.npz import save_npz_atomic
-        from warpskill.contract.reconstruction import FIELD_SHAPES
-
-        arrays = {name: getattr(self.reconstruction, name) for name in FIELD_SHAPES}
-        arrays["success"] = np.array(self.success)
-        arrays["engine"] = np.array(self.engine)
-        save_npz_atomic(path, arrays)
-
-
 def replay(plan: RobotPlan, recon: Reconstruction, engine: str = "mujoco", *, device: str | None = None) -> Replay:
     """Simulate ``plan`` in the scene of ``recon`` and judge the replayed object motion.
 
     Args:
         plan: from :func:`warpskill.robot.retarget` (or :meth:`RobotPlan.load`).
-        recon: the reconstruction the plan was made for (cuboid sizes, statics, action).
+        recon: the reconstruction the plan was made for (statics, action); the cuboids'
+            sizes and heights are the plan's (:meth:`RobotPlan.scene`), as ``replay.npz`` records.
         engine: ``"mujoco"`` (default) or ``"newton"``.
         device: Warp device for Newton (``"cpu"``, ``"cuda"``; default: Warp's default).
 
@@ -73,6 +40,7 @@ def replay(plan: RobotPlan, recon: Reconstruction, engine: str = "mujoco", *, de
     """
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; valid engines: {', '.join(ENGINES)}")
+    recon = plan.scene(recon)  # the cuboids the plan was made for (sizes, heights): simulated and recorded
     fps = float(recon.fps)
     times = np.arange(plan.start_time, plan.t[-1] + 1e-9, 1.0 / fps)
     started = time.perf_counter()

@@ -1,4 +1,11 @@
-"""A video of a MuJoCo replay where an offscreen renderer works, else a plain 3D plot of the paths."""
+"""A video of a MuJoCo replay where an offscreen renderer works, else a plain 3D plot of the paths.
+
+The frame size, rate, camera and lights are the ``[video]`` table of
+``assets/robot_scene.toml`` (:func:`~warpskill.robot.scene_config.load_scene_config`): the
+camera looks at a point between the robot base and the scene from the robot's front left, so the
+whole arm, the table and the cuboids are in view; a headlight and directional lights
+(added by :func:`~warpskill.robot.replay_mujoco.build_model`) light them.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +14,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+
+from warpskill.robot.scene_config import CameraConfig, load_scene_config
+from warpskill.visual.media import figure, save_figure, write_video
 
 
 def prefer_headless_gl() -> None:
@@ -18,24 +28,49 @@ def prefer_headless_gl() -> None:
         os.environ.setdefault("MUJOCO_GL", "egl")
 
 
+def camera_view(base: np.ndarray, recon, camera: CameraConfig | None = None) -> dict:
+    """The video camera for a robot at ``base`` in the scene of ``recon``.
+
+    Args:
+        base: (4, 4) pose of the robot base in the world.
+        recon: the reconstruction (the object's path and the static cuboids).
+        camera: the camera settings; default: the scene description's.
+
+    Returns:
+        ``lookat`` (3,) [m], ``distance`` [m], ``azimuth``, ``elevation`` [deg] of a MuJoCo
+        free camera (world frame).
+    """
+    camera = camera or load_scene_config().video.camera
+    xy = np.concatenate([recon.object_pos[:, :2], recon.static_pos[:, :2]], 0)
+    centre = 0.5 * (xy.min(0) + xy.max(0))
+    lookat_xy = (1.0 - camera.lookat_blend) * base[:2, 3] + camera.lookat_blend * centre
+    yaw = np.degrees(np.arctan2(base[1, 0], base[0, 0]))
+    return {
+        "lookat": np.array([lookat_xy[0], lookat_xy[1], camera.lookat_height]),
+        "distance": camera.distance,
+        "azimuth": yaw + camera.azimuth,
+        "elevation": camera.elevation,
+    }
+
+
 class _Recorder:
     """Collects offscreen MuJoCo frames (the ``video`` hook of :func:`replay_mujoco.simulate`)."""
 
-    def __init__(self, lookat: np.ndarray, size: tuple[int, int] = (480, 640)):
-        self.lookat = lookat
-        self.size = size
+    def __init__(self, view: dict, size: tuple[int, int] | None = None):
+        video = load_scene_config().video
+        self.view = view
+        self.size = size or (video.height, video.width)
         self.frames: list[np.ndarray] = []
         self.renderer = None
 
     def start(self, model):
         import mujoco
 
-        model.vis.headlight.ambient[:] = 0.35
-        model.vis.headlight.diffuse[:] = 0.6
         self.renderer = mujoco.Renderer(model, *self.size)
         self.camera = mujoco.MjvCamera()
-        self.camera.lookat[:] = self.lookat
-        self.camera.distance, self.camera.azimuth, self.camera.elevation = 1.1, -120.0, -30.0
+        self.camera.lookat[:] = self.view["lookat"]
+        self.camera.distance = self.view["distance"]
+        self.camera.azimuth, self.camera.elevation = self.view["azimuth"], self.view["elevation"]
         return self.renderer
 
     def frame(self, model, data) -> None:
@@ -43,14 +78,13 @@ class _Recorder:
         self.frames.append(self.renderer.render().copy())
 
 
-VIDEO_FPS = 25.0  # [1/s] frames of the replay video
+VIDEO_FPS = load_scene_config().video.fps  # [1/s] frames of the replay video
 _offscreen = {"failed": False}  # MuJoCo aborts the process on a second try after its GL backend failed once
 
 
 def record(plan, recon, result, out: Path) -> Path:
     """Write ``out/replay.mp4``, the whole plan replayed in MuJoCo and rendered offscreen, or,
     where no renderer works, ``out/replay.png`` (a 3D plot of the replayed paths)."""
-    from warpskill.visual.media import write_video
 
     frames = None if _offscreen["failed"] else _render(plan, recon)
     if frames is None:
@@ -65,8 +99,7 @@ def _render(plan, recon) -> np.ndarray | None:
     """(F, H, W, 3) frames of the whole plan at :data:`VIDEO_FPS`, or None without an offscreen renderer."""
     from warpskill.robot import replay_mujoco
 
-    centre = np.vstack([recon.object_pos, recon.static_pos]).mean(axis=0) + np.array([0.0, 0.0, 0.05])
-    recorder = _Recorder(centre)
+    recorder = _Recorder(camera_view(plan.base, recon))
     try:
         replay_mujoco.simulate(plan, recon, np.arange(0.0, plan.t[-1] + 1e-9, 1.0 / VIDEO_FPS), video=recorder)
     except Exception:  # noqa: BLE001 - MuJoCo raises various errors when no GL context can be made
@@ -81,12 +114,7 @@ def _render(plan, recon) -> np.ndarray | None:
 
 
 def _plot(replayed, path: Path) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig = plt.figure(figsize=(6, 5))
+    fig = figure(6.0, 5.0)
     ax = fig.add_subplot(projection="3d")
     ax.plot(*replayed.hand_pos.T, label="gripper TCP")
     ax.plot(*replayed.object_pos.T, label="object centre")
@@ -97,6 +125,4 @@ def _plot(replayed, path: Path) -> Path:
     ax.set_zlabel("z [m]")
     ax.legend()
     ax.set_title(f"{replayed.action}: replay")
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)

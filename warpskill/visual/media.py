@@ -1,4 +1,4 @@
-"""Writing frames as a video file (MP4 through OpenCV, GIF through imageio)."""
+"""Writing frames as a video file (MP4 through OpenCV, GIF through imageio) and figures as PNG (Agg, no pyplot)."""
 
 from __future__ import annotations
 
@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING
 import cv2
 import imageio.v3 as iio
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
 if TYPE_CHECKING:
     pass
@@ -31,4 +33,20 @@ def write_video(path: Path, frames: np.ndarray, fps: float) -> Path:
             writer.write(frame[..., ::-1])
     finally:
         writer.release()
+    return path
+
+
+def figure(width: float, height: float) -> Figure:
+    """A figure of ``width`` x ``height`` inches with constrained layout, drawn by Agg.
+
+    Built without pyplot: no global backend switch, no display, nothing left open.
+    """
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def save_figure(fig: Figure, path: Path) -> Path:
+    """Save ``fig`` as a PNG at 120 dpi."""
+    fig.savefig(path, dpi=120)
     return path

@@ -41,14 +41,14 @@ import itertools
 import torch
 from torchdiffeq import odeint, odeint_event
 
+from warpskill.engine.records import Rollout, SceneInputs
 from warpskill.engine.reference.geometry import orthonormalize, skew
 from warpskill.engine.reference.physics import (
-    _check,
     contact_impulses,
     sample_points,
     tip_distance,
 )
-from warpskill.engine.simulation import PhysicsConfig, Rollout
+from warpskill.engine.simulation import PhysicsConfig
 
 RTOL = 1e-7  # dopri5's default relative tolerance (torchdiffeq's default)
 ATOL = 1e-9  # dopri5's default absolute tolerance [m, m/s, rad/s] (torchdiffeq's default)
@@ -184,11 +184,11 @@ def _step(scene: _Scene, y: torch.Tensor, grasped: bool, drive: torch.Tensor, t0
     return end, not grasped, t_event
 
 
-def _scene_rollout(config: PhysicsConfig, inputs: dict, b: int, steps_per_frame: int, dt: float, tolerances):
+def _scene_rollout(config: PhysicsConfig, inputs: SceneInputs, b: int, steps_per_frame: int, dt: float, tolerances):
     """Frames (dict of (N, ...) tensors) and event times of scene ``b``."""
-    pick = lambda name: inputs[name][b : b + 1]  # noqa: E731
+    pick = lambda name: getattr(inputs, name)[b : b + 1]  # noqa: E731
     scene = _Scene(config, pick("object_size"), (pick("static_pos"), pick("static_rot"), pick("static_size")))
-    hand_vel = inputs["hand_vel"][b]
+    hand_vel = inputs.hand_vel[b]
     state = {
         "hand_pos": pick("hand_pos0"),
         "hand_rot": pick("hand_rot0"),
@@ -235,16 +235,7 @@ def _frame(scene: _Scene, y: torch.Tensor, grasped: bool, drive: torch.Tensor) -
 
 
 def simulate_dopri5(
-    hand_pos0: torch.Tensor,
-    hand_rot0: torch.Tensor,
-    grasp0: torch.Tensor,
-    hand_vel: torch.Tensor,
-    object_pos0: torch.Tensor,
-    object_rot0: torch.Tensor,
-    object_size: torch.Tensor,
-    static_pos: torch.Tensor,
-    static_rot: torch.Tensor,
-    static_size: torch.Tensor,
+    inputs: SceneInputs,
     *,
     steps_per_frame: int,
     fps: float,
@@ -254,14 +245,15 @@ def simulate_dopri5(
     events: list | None = None,
 ) -> Rollout:
     """Roll out B scenes with adaptive dopri5 and the hard grasp switch (same arguments,
-    checks and :class:`~warpskill.engine.simulation.Rollout` as :func:`warpskill.engine.simulation.simulate`).
+    :meth:`~warpskill.engine.records.SceneInputs.check` and :class:`~warpskill.engine.records.Rollout`
+    as :func:`warpskill.engine.simulation.simulate`).
 
     Integrates in float64 whatever the inputs' dtype and returns the inputs' dtype;
     ``grasped`` is the hard switch (0 or 1). Differentiable by autograd.
 
     Args:
-        hand_pos0 ... static_size: as :func:`warpskill.engine.simulation.simulate`; ``hand_vel[:, n]``
-            drives the hand over [n dt, (n + 1) dt) with dt = 1 / (fps * steps_per_frame) [s].
+        inputs: the B scenes; ``hand_vel[:, n]`` drives the hand over [n dt, (n + 1) dt) with
+            dt = 1 / (fps * steps_per_frame) [s].
         steps_per_frame: hand velocity steps per frame.
         fps: frame rate [1/s].
         config: physics constants (``grasp_tau`` and ``max_dt`` are unused).
@@ -271,25 +263,13 @@ def simulate_dopri5(
     Returns:
         The rollout at the N frames.
     """
-    tensors = {
-        "hand_pos0": hand_pos0,
-        "hand_rot0": hand_rot0,
-        "grasp0": grasp0,
-        "hand_vel": hand_vel,
-        "object_pos0": object_pos0,
-        "object_rot0": object_rot0,
-        "object_size": object_size,
-        "static_pos": static_pos,
-        "static_rot": static_rot,
-        "static_size": static_size,
-    }
-    _check(tensors, steps_per_frame, fps)
-    dtype = hand_pos0.dtype
-    inputs = {name: tensor.to(torch.float64) for name, tensor in tensors.items()}
+    SceneInputs.check(inputs, steps_per_frame=steps_per_frame, fps=fps)
+    dtype = inputs.hand_pos0.dtype
+    exact = inputs.to(torch.float64)
     dt = 1.0 / (fps * steps_per_frame)
     scenes = []
-    for b in range(hand_pos0.shape[0]):
-        frames, times = _scene_rollout(config, inputs, b, steps_per_frame, dt, (rtol, atol))
+    for b in range(inputs.hand_pos0.shape[0]):
+        frames, times = _scene_rollout(config, exact, b, steps_per_frame, dt, (rtol, atol))
         scenes.append(frames)
         if events is not None:
             events.append(times)

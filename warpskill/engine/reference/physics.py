@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import torch
 
+from warpskill.engine.records import Rollout, SceneInputs
 from warpskill.engine.reference.geometry import (
     box_distance,
     exp_rotation,
     orthonormalize,
     resting_box_distance,
 )
-from warpskill.engine.simulation import PhysicsConfig, Rollout, _validate
+from warpskill.engine.simulation import PhysicsConfig
 
 
 def sample_points(size: torch.Tensor) -> torch.Tensor:
@@ -88,36 +89,18 @@ def contact_impulses(
 
 
 def simulate_reference(
-    hand_pos0: torch.Tensor,
-    hand_rot0: torch.Tensor,
-    grasp0: torch.Tensor,
-    hand_vel: torch.Tensor,
-    object_pos0: torch.Tensor,
-    object_rot0: torch.Tensor,
-    object_size: torch.Tensor,
-    static_pos: torch.Tensor,
-    static_rot: torch.Tensor,
-    static_size: torch.Tensor,
+    inputs: SceneInputs,
     *,
     steps_per_frame: int,
     fps: float,
     config: PhysicsConfig = PhysicsConfig(),
 ) -> Rollout:
-    """Roll out B scenes exactly as :func:`warpskill.engine.simulation.simulate` (same arguments and
-    :class:`~warpskill.engine.simulation.Rollout`, same checks), in Torch operations.
+    """Roll out B scenes exactly as :func:`warpskill.engine.simulation.simulate` (same arguments,
+    the same :meth:`~warpskill.engine.records.SceneInputs.check` and
+    :class:`~warpskill.engine.records.Rollout`), in Torch operations.
 
     Args:
-        hand_pos0: (B, 3) initial hand tip position [m].
-        hand_rot0: (B, 3, 3) initial hand rotation.
-        grasp0: (B,) initial grasp signal [m].
-        hand_vel: (B, S, 7) per-step v_h [m/s], w_h [rad/s], grasp rate [m/s];
-            S = (N - 1) * steps_per_frame.
-        object_pos0: (B, 3) initial object centre [m].
-        object_rot0: (B, 3, 3) initial object rotation.
-        object_size: (B, 3) object edge lengths [m].
-        static_pos: (B, K, 3) static cuboid centres [m]; K may be 0.
-        static_rot: (B, K, 3, 3) static cuboid rotations.
-        static_size: (B, K, 3) static cuboid edge lengths [m].
+        inputs: the B scenes; ``hand_vel`` (B, S, 7) with S = (N - 1) * steps_per_frame.
         steps_per_frame: integration steps per frame.
         fps: frame rate [1/s].
         config: physics constants.
@@ -125,19 +108,10 @@ def simulate_reference(
     Returns:
         The rollout at the N frames, differentiable by autograd.
     """
-    tensors = {
-        "hand_pos0": hand_pos0,
-        "hand_rot0": hand_rot0,
-        "grasp0": grasp0,
-        "hand_vel": hand_vel,
-        "object_pos0": object_pos0,
-        "object_rot0": object_rot0,
-        "object_size": object_size,
-        "static_pos": static_pos,
-        "static_rot": static_rot,
-        "static_size": static_size,
-    }
-    _check(tensors, steps_per_frame, fps)
+    SceneInputs.check(inputs, steps_per_frame=steps_per_frame, fps=fps)
+    hand_pos0, hand_rot0, grasp0, hand_vel = inputs.hand_pos0, inputs.hand_rot0, inputs.grasp0, inputs.hand_vel
+    object_pos0, object_rot0, object_size = inputs.object_pos0, inputs.object_rot0, inputs.object_size
+    static_pos, static_rot, static_size = inputs.static_pos, inputs.static_rot, inputs.static_size
     dt = 1.0 / (fps * steps_per_frame)
     points = sample_points(object_size)
     statics = (static_pos, static_rot, static_size)
@@ -226,16 +200,3 @@ def _step(config, dt, points, statics, fall, state, switch_change, v_h, w_h, gra
     }
     return new, s * carried + own_vel, s * w_h + own_ang_vel
 
-
-def _check(tensors: dict[str, torch.Tensor], steps_per_frame: int, fps: float) -> None:
-    """The argument checks of :func:`warpskill.engine.simulation.simulate` (its tensor checks, reused)."""
-    sizes = _validate(tensors)
-    if steps_per_frame < 1:
-        raise ValueError(f"steps_per_frame must be >= 1, got {steps_per_frame}")
-    if not fps > 0:
-        raise ValueError(f"fps must be positive, got {fps}")
-    if sizes["S"] < steps_per_frame or sizes["S"] % steps_per_frame:
-        raise ValueError(
-            f"hand_vel must have (N - 1) * steps_per_frame steps with N >= 2, got {sizes['S']} steps "
-            f"for steps_per_frame={steps_per_frame}"
-        )

@@ -25,7 +25,6 @@ than about 29 degrees, where the coverage the kernels drop is below 1e-4.
 from __future__ import annotations
 
 import torch
-from warpskill.kernels.raster import CUTOFF
 
 from warpskill.contract.camera import Intrinsics
 from warpskill.engine.primitives import (
@@ -36,7 +35,8 @@ from warpskill.engine.primitives import (
     prism_planes,
 )
 from warpskill.engine.projection import project, world_to_camera
-from warpskill.engine.rendering import _validate
+from warpskill.engine.rendering import check_silhouette_inputs
+from warpskill.kernels.raster import CUTOFF
 
 _CHUNK_ELEMENTS = 2**24  # elements of the largest per-pixel temporary (per frame chunk)
 
@@ -70,7 +70,7 @@ def render_reference(
     Returns:
         (F, 1 + C, H, W) visible masks in [0, 1]: channel 0 the hand, then the cuboids.
     """
-    _validate(
+    check_silhouette_inputs(
         hand_pos, hand_rot, cuboid_pos, cuboid_rot, cuboid_size, camera_height, camera_elevation, intrinsics, sigma
     )
     dtype = hand_pos.dtype

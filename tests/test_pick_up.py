@@ -1,0 +1,69 @@
+"""The end of a pick-up: an object still held after the contact signal ends is for the physics to decide."""
+
+import importlib
+
+import numpy as np
+
+from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.inputs import held_after_contact
+from warpskill.optimizer.pipeline import optimize
+from warpskill.synthetic import make_demonstration
+
+optimize_module = importlib.import_module("warpskill.optimizer.pipeline")
+N, H, W = 20, 30, 40
+
+
+def _masks(hand_box, object_box):
+    """(N, 2, H, W) masks from per-frame boxes (callables k -> (r0, r1, c0, c1) or None)."""
+    masks = np.zeros((N, 2, H, W), dtype=np.float32)
+    for k in range(N):
+        for channel, box in enumerate((hand_box(k), object_box(k))):
+            if box is not None:
+                r0, r1, c0, c1 = box
+                masks[k, channel, max(r0, 0) : max(r1, 0), c0:c1] = 1
+    return masks
+
+
+CONTACT = np.arange(N) < 12
+
+
+def test_an_object_held_to_the_end_is_in_doubt_after_the_signal():
+    held = _masks(lambda k: (0, 10, 18, 22), lambda k: (10, 16, 15, 25))
+    assert held_after_contact(held, CONTACT).tolist() == [False] * 12 + [True] * 8
+
+
+def test_a_hand_that_lets_go_and_leaves_leaves_no_doubt():
+    left = _masks(lambda k: (0, 10 if k < 15 else 4, 18, 22) if k < 15 else (0, 3, 30, 34), lambda k: (10, 16, 15, 25))
+    assert not held_after_contact(left, CONTACT).any()
+    no_contact = np.zeros(N, dtype=bool)
+    assert not held_after_contact(left, no_contact).any()
+
+
+def test_an_object_that_leaves_through_the_border_with_the_hand_is_in_doubt():
+    rising = lambda k: (10 - 2 * max(k - 8, 0), 16 - 2 * max(k - 8, 0), 15, 25) if k < 16 else None  # noqa: E731
+    out = _masks(lambda k: (0, max(10 - 2 * max(k - 8, 0), 1), 18, 22), rising)
+    contact = np.arange(N) < 14
+    assert held_after_contact(out, contact).tolist() == [False] * 14 + [True] * 6
+    # Vanishing in the middle of the image is not leaving the view.
+    vanish = _masks(lambda k: (0, 10, 18, 22), lambda k: (10, 16, 15, 25) if k < 15 else None)
+    assert not held_after_contact(vanish, CONTACT).any()
+
+
+def test_both_endings_go_through_the_physics_and_the_video_picks_one(monkeypatch):
+    calls = []
+    make = optimize_module.make_physical_scene
+
+    def counted(fit, contact, *args, **kwargs):
+        calls.append(np.asarray(contact).copy())
+        return make(fit, contact, *args, **kwargs)
+
+    monkeypatch.setattr(optimize_module, "make_physical_scene", counted)
+    small = OptimizeConfig(iterations=4, init_iterations=4)
+    demo = make_demonstration("pick_up", seed=0, input="boxes", image_size=(60, 107), duration=2.0)
+    recon = optimize(demo, config=small, progress=False)
+    assert len(calls) == 2 and calls[1].sum() > calls[0].sum() and calls[1][-1]
+    assert recon.num_frames == demo.num_frames
+    calls.clear()
+    optimize(make_demonstration("put_onto", seed=0, image_size=(60, 107), duration=2.0), config=small,
+             progress=False)
+    assert len(calls) == 1

@@ -1,0 +1,164 @@
+"""The Panda does the skill: it stands where it can (placement search), starts from home onto the
+demonstrated path near the contact, and handles its own object sizes (substituting a too-wide one)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+pytest.importorskip("placo")
+pytest.importorskip("mujoco")
+from warpskill.cli import main  # noqa: E402
+from warpskill.contract.reconstruction import Reconstruction  # noqa: E402
+from warpskill.synthetic import make_demonstration  # noqa: E402
+
+robot = pytest.importorskip("warpskill.robot")
+from warpskill.robot.model import RobotModelError, make_scene, panda_description_dir  # noqa: E402
+
+try:
+    panda_description_dir()
+except RobotModelError as error:  # pragma: no cover - depends on the environment
+    pytest.skip(str(error), allow_module_level=True)
+
+LOWER = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])
+UPPER = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
+SPEED = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
+PLATE = (0.264, 0.234, 0.05)  # [m] a plate: wider than the gripper's opening on every face
+
+
+def truth(action: str, seed: int) -> Reconstruction:
+    return Reconstruction(**make_demonstration(action, seed=seed, noise="none").truth)
+
+
+def assert_admissible(recon: Reconstruction, plan) -> None:
+    """Within the joint position and speed limits, and no collision, at the plan's base and sizes."""
+    from warpskill.robot.planner import Planner
+
+    assert np.all(plan.q >= LOWER) and np.all(plan.q <= UPPER)
+    speed = np.abs(np.diff(plan.q, axis=0)) / np.diff(plan.t)[:, None]
+    assert np.all(speed <= SPEED * 1.001), speed.max(0)
+    planner = Planner(make_scene(plan.scene(recon), base=plan.base))
+    for q, opening in zip(plan.q[::3], plan.gripper[::3]):
+        planner.set_q(q, opening)
+        assert min(d.min_distance for d in planner.robot.distances()) > 0.0
+
+
+def far_static(recon: Reconstruction, distance: float = 1.3) -> Reconstruction:
+    """``recon`` with a static box ``distance`` to the object's right: the scene centre moves half of it away."""
+    pos = recon.object_pos[0] + np.array([distance, 0.0, 0.0])
+    pos[2] = 0.05
+    return dataclasses.replace(recon, static_pos=pos[None], static_rot=np.eye(3)[None],
+                               static_size=np.array([[0.1, 0.1, 0.1]]))
+
+
+def test_the_robot_stands_where_it_can_do_the_task():
+    recon = far_static(truth("pick_up", 0))
+    # At the default placement the cuboid lies 0.65 m to the side of the scene centre: out of reach.
+    with pytest.raises(robot.PlanError):
+        robot.retarget(recon, placement=robot.Placement())
+    plan = robot.retarget(recon)
+    assert plan.placement == "auto"
+    assert not (np.allclose(plan.offset, robot.Placement().offset) and np.isclose(plan.yaw, robot.Placement().yaw))
+    assert_admissible(recon, plan)
+    assert robot.replay(plan, recon).success
+    again = robot.retarget(recon)  # deterministic
+    np.testing.assert_allclose(again.base, plan.base)
+
+
+def test_the_hand_far_away_before_the_contact_never_fails_the_plan():
+    recon = truth("push_left_to_right", 0)
+    k_on = int(np.flatnonzero(recon.grasped > 0.5)[0])
+    hand = recon.hand_pos.copy()
+    # The person's hand starts 1.2 m away and high up, and only comes to the object just before the contact.
+    fade = np.clip(1.0 - np.arange(recon.num_frames) / max(k_on - 5, 1), 0.0, 1.0)[:, None]
+    hand += fade * np.array([-0.9, -0.6, 0.6])
+    recon = dataclasses.replace(recon, hand_pos=hand)
+    plan = robot.retarget(recon, placement=robot.Placement())
+    assert_admissible(recon, plan)
+    # The robot starts from home and is near the object (not out at the person's hand) when the demonstration starts.
+    start = np.searchsorted(plan.t, plan.start_time)
+    assert np.linalg.norm(plan.tcp[start, :3, 3] - recon.object_pos[k_on]) < 0.35
+    from warpskill.robot.model import HOME_Q
+
+    np.testing.assert_allclose(plan.q[0], HOME_Q, atol=0.1)
+    assert robot.replay(plan, recon).success
+
+
+def test_a_plate_wider_than_the_gripper_is_substituted_and_picked_up(tmp_path):
+    recon = truth("pick_up", 0)
+    plan = robot.retarget(recon, object_size=PLATE)
+    assert "wider than the gripper's 0.074 m usable opening" in plan.note
+    assert plan.object_size[2] == pytest.approx(PLATE[2])  # height kept
+    assert np.all(plan.object_size[:2] <= 0.074)  # the horizontal extents fit the gripper
+    # The demonstrated centre path is kept; the thin object rests on the table at the start.
+    np.testing.assert_allclose(plan.object_pos[:, :2], recon.object_pos[:, :2])
+    vertical = np.abs(recon.object_rot[0, 2])  # the cuboid's axes' share of the vertical
+    lowest = plan.object_pos[0, 2] - 0.5 * vertical @ plan.object_size
+    assert lowest == pytest.approx(recon.object_pos[0, 2] - 0.5 * vertical @ recon.object_size, abs=1e-6)
+    assert_admissible(recon, plan)
+    result = robot.replay(plan, recon)
+    assert result.success, result.evaluation.checks
+    result.save(tmp_path / "replay.npz")
+    with np.load(tmp_path / "replay.npz") as saved:  # the sizes as simulated
+        np.testing.assert_allclose(saved["object_size"], plan.object_size)
+    with pytest.raises(robot.PlanError, match="wider than the gripper's 0.074 m usable opening"):
+        robot.retarget(recon, object_size=PLATE, keep_size=True)
+
+
+def test_wide_pushes_need_no_substitute():
+    recon = truth("push_left_to_right", 0)
+    plan = robot.retarget(recon, object_size=(0.26, 0.23, 0.05), placement=robot.Placement())
+    assert plan.note == "" and plan.grasp_kind == "push"
+    np.testing.assert_allclose(plan.object_size, (0.26, 0.23, 0.05))
+
+
+def test_static_sizes_move_the_resting_heights():
+    from warpskill.robot import fit_sizes
+
+    recon = truth("put_onto", 0)
+    taller = recon.static_size.copy()
+    taller[0, 2] += 0.04
+    fitted, note = fit_sizes(recon, static_sizes=taller, keep_size=True)
+    assert note == ""
+    assert fitted.static_pos[0, 2] == pytest.approx(recon.static_pos[0, 2] + 0.02)  # its bottom stays on the table
+    assert fitted.object_pos[0, 2] == pytest.approx(recon.object_pos[0, 2])  # starts on the table
+    assert fitted.object_pos[-1, 2] == pytest.approx(recon.object_pos[-1, 2] + 0.04)  # ends on the taller top
+    with pytest.raises(ValueError, match="static size"):
+        fit_sizes(recon, static_sizes=[(0.1, 0.1, 0.1)] * 2)
+
+
+def test_cli_object_size_and_keep_size(tmp_path, capsys):
+    recon = truth("pick_up", 0)
+    recon.save(tmp_path / "recon.npz")
+    args = ["retarget", str(tmp_path / "recon.npz"), "-o", str(tmp_path / "plan.npz"), "--object-size", *map(str, PLATE)]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "placement (auto)" in out
+    assert sum("wider than the gripper's 0.074 m usable opening" in line for line in out.splitlines()) == 1
+    assert main(["replay", str(tmp_path / "plan.npz"), str(tmp_path / "recon.npz"), "-o", str(tmp_path / "out")]) == 0
+    with np.load(tmp_path / "out" / "replay.npz") as saved:
+        np.testing.assert_allclose(saved["object_size"], robot.RobotPlan.load(tmp_path / "plan.npz").object_size)
+    assert main([*args, "--keep-size"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("warpskill: error: frame") and err.count("\n") == 1
+    assert "no feasible grasp: the 0.264 x 0.234 x 0.050 m cuboid is wider than the gripper's 0.074 m" in err
+
+
+def test_a_tilted_cuboid_rests_on_a_face():
+    from warpskill.contract.geometry import cuboid_corners
+    from warpskill.robot import fit_sizes
+
+    recon = truth("push_right_to_left", 0)
+    a = np.radians(20.0)
+    tilt = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(a), -np.sin(a)], [0.0, np.sin(a), np.cos(a)]])
+    tilted = dataclasses.replace(recon, object_rot=tilt @ recon.object_rot)
+    fitted, note = fit_sizes(tilted)
+    assert note == ""
+    corners = cuboid_corners(fitted.object_pos[0], fitted.object_rot[0], fitted.object_size)
+    lowest = np.sort(corners[:, 2])[:4]
+    np.testing.assert_allclose(lowest, lowest[0], atol=1e-9)  # a face down
+    before = cuboid_corners(tilted.object_pos[0], tilted.object_rot[0], tilted.object_size)[:, 2].min()
+    assert lowest[0] == pytest.approx(before, abs=1e-9)  # on the same support
+    np.testing.assert_allclose(fitted.object_pos[:, :2], tilted.object_pos[:, :2])

@@ -1,0 +1,52 @@
+"""The ``warpskill`` command line.
+
+    warpskill demo [-o OUT]                       synthesise, reconstruct, picture, evaluate, plan, replay
+    warpskill prepare VIDEO (--polygons F|--masks D|--labels D|--boxes F --video-id ID) --action A -o DEMO.npz
+                                                  a recording to a demonstration and a contact sheet
+    warpskill run VIDEO (same inputs) --action A -o OUT
+                                                  prepare, optimize, retarget and replay; resumable
+    warpskill optimize DEMO.npz -o OUT            one demonstration to OUT/reconstruction.npz
+    warpskill optimize A.npz B.npz ... -o OUT     several, side by side: OUT/A/, OUT/B/, ...
+    warpskill evaluate RECON.npz [--action A]     the paper's success criteria
+    warpskill retarget RECON.npz -o PLAN.npz      Panda plan (placo); also PLAN.csv
+    warpskill replay PLAN.npz RECON.npz -o OUT    simulate the plan: OUT/replay.npz + success
+    warpskill view OUT [-o SCENE.rrd] [--serve]   a Rerun recording of a results folder (3D scene)
+    warpskill bench kernels [--device cpu|cuda]   Warp kernel microbenchmarks
+    warpskill bench speed [--device cpu|cuda]     Warp engine vs plain-Torch reference, per iteration
+    warpskill bench synthetic [--seeds N]         the paper's success table on synthetic data
+    warpskill bench robot [--source truth|optimised] [--engines mujoco newton]
+                                                  plan and replay the 9 actions x N seeds on the Panda
+    warpskill bench something-else --annotations A.json --phases P.csv --actions A.csv [-o OUT]
+                                                  the same table on annotated real videos
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from warpskill.cli import bench, pipeline, prepare, robot, run, view
+
+__all__ = ["main"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``warpskill`` console script; returns the exit status."""
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if not hasattr(args, "run"):
+        parser.print_help()
+        return 2
+    try:
+        return args.run(args) or 0
+    except (ValueError, FileNotFoundError) as error:  # bad input: one clear line, no traceback
+        print(f"warpskill: error: {error}", file=sys.stderr)
+        return 1
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="warpskill", description="Learn a manipulation skill from one video.")
+    commands = parser.add_subparsers(title="commands")
+    for module in (pipeline, prepare, run, robot, bench, view):
+        module.register(commands)
+    return parser

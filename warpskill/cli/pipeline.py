@@ -1,0 +1,149 @@
+"""``warpskill demo``, ``optimize`` and ``evaluate``: a demonstration to a judged reconstruction."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from warpskill.cli.common import (
+    add_optimise_options,
+    add_placement_options,
+    installed,
+    placement,
+    reconstruct,
+    report,
+    save_plan,
+    save_scene,
+)
+
+__all__ = ["register"]
+
+
+def register(commands) -> None:
+    """Add ``demo``, ``optimize`` and ``evaluate`` to the ``commands`` sub-parsers."""
+    demo = commands.add_parser("demo", help="run the whole pipeline on an embedded synthetic demonstration")
+    demo.add_argument("-o", "--out", type=Path, default=Path("warpskill-out/demo"), help="output folder")
+    demo.add_argument("--action", default="put_onto", help="which action to synthesise (default: put_onto)")
+    demo.add_argument("--no-robot", action="store_true", help="stop after the reconstruction (no Panda plan or replay)")
+    add_optimise_options(demo)
+    add_placement_options(demo)
+    demo.set_defaults(run=_demo)
+
+    optimise = commands.add_parser("optimize", help="reconstruct demonstration .npz files (several: together)")
+    optimise.add_argument("demos", type=Path, nargs="+", metavar="demo",
+                          help="demonstration .npz (FORMATS.md); several are optimised side by side")
+    optimise.add_argument("-o", "--out", type=Path, required=True,
+                          help="output folder (with several demonstrations: OUT/<file name>/ each)")
+    optimise.add_argument("--init-only", action="store_true", help="stop after the physics-free initialisation")
+    optimise.add_argument("--no-pictures", action="store_true", help="skip the pictures")
+    optimise.add_argument("--workers", type=int, metavar="N",
+                          help="spread the demonstrations over N Ray workers (one per core; on CUDA one per GPU): "
+                               "OUT/<name>/ each, finished ones skipped on a rerun (needs the cluster extra)")
+    optimise.add_argument("--ray-address", metavar="ADDR",
+                          help="join this Ray cluster instead of starting a local one (default: $RAY_ADDRESS)")
+    add_optimise_options(optimise)
+    optimise.set_defaults(run=_optimize)
+
+    evaluate = commands.add_parser("evaluate", help="check a reconstruction against the paper's success criteria")
+    evaluate.add_argument("reconstruction", type=Path, help="reconstruction .npz (FORMATS.md)")
+    evaluate.add_argument("--action", help="action name (default: the one stored in the file)")
+    evaluate.add_argument("--mode", choices=("strict", "original"), default="strict")
+    evaluate.set_defaults(run=_evaluate)
+
+
+def _demo(args) -> int:
+    from warpskill import make_demonstration
+    from warpskill.robot import prefer_headless_gl
+
+    prefer_headless_gl()
+    demo = make_demonstration(args.action, seed=args.seed)
+    args.out.mkdir(parents=True, exist_ok=True)
+    demo.save(args.out / "demonstration.npz")
+    print(f"demonstration: {args.out / 'demonstration.npz'} ({args.action}, {demo.num_frames} frames)")
+    [recon] = reconstruct([demo], [args.out], args.out / "checkpoint.pt", args)
+    if args.no_robot:
+        return 0
+    missing = [name for name in ("placo", "mujoco", "example-robot-data") if not installed(name)]
+    if missing:
+        print(f"robot steps skipped ({', '.join(missing)} not installed): pip install 'warpskill[robot]'")
+        return 0
+    from warpskill.robot import PlanError, record, replay, retarget
+
+    try:
+        plan = retarget(recon, placement=placement(args))
+    except PlanError as error:
+        print(f"robot plan: none: {error}")
+        return 0
+    save_plan(plan, args.out / "plan.npz")
+    result = replay(plan, recon)
+    result.save(args.out / "replay.npz")
+    print(f"replay: {args.out / 'replay.npz'} (mujoco, {result.replay_time:.2f} s); "
+          f"picture: {record(plan, recon, result, args.out)}")
+    save_scene(recon, demo, args.out, plan, result, quiet=True)  # scene.rrd again, with the robot
+    report(result.reconstruction, args.action)
+    return 0
+
+
+def _optimize(args) -> int:
+    from warpskill.contract import Demonstration
+
+    stems = [path.stem for path in args.demos]
+    if len(set(stems)) < len(stems):
+        raise ValueError("demonstration files must have different names: each gets OUT/<name>/")
+    if args.workers is not None or args.ray_address:
+        from warpskill.cluster import INSTALL_HINT, ray_available
+
+        if ray_available():
+            return _optimize_on_ray(args, stems)
+        print(f"--workers needs Ray, which is not installed ({INSTALL_HINT}): optimising serially")
+    demos = [Demonstration.load(path) for path in args.demos]
+    folders = [args.out] if len(demos) == 1 else [args.out / stem for stem in stems]
+    reconstruct(demos, folders, args.out / "checkpoint.pt", args, init_only=args.init_only,
+                 pictures=not args.no_pictures)
+    return 0
+
+
+def _optimize_on_ray(args, stems: list[str]) -> int:
+    """``optimize --workers N``: each demonstration a Ray task into OUT/<name>/; one progress bar, a summary."""
+    from warpskill.cluster import optimize_folder
+    from warpskill.contract import Reconstruction
+
+    if args.workers is not None and args.workers < 1:
+        raise ValueError("--workers must be at least 1")
+    if not args.ray_address:
+        from warpskill.engine import resolve_device
+
+        resolve_device(args.device)  # a bad device is one error line, not one failure per demonstration
+    summary = optimize_folder(
+        dict(zip(stems, args.demos)), args.out, workers=args.workers, address=args.ray_address, device=args.device,
+        iterations=args.iterations, seed=args.seed, progress=not args.quiet, init_only=args.init_only,
+        postprocess=None if args.no_pictures else _pictures,
+    )
+    for outcome in summary.outcomes.values():
+        if outcome.ok:
+            recon = Reconstruction.load(outcome.reconstruction)
+            print(f"reconstruction: {outcome.reconstruction}")
+            report(recon, str(recon.action) or None)
+    print(summary)
+    return 1 if summary.failed else 0
+
+
+def _pictures(recon, demo, folder: Path) -> None:
+    """The pictures and 3D scene of one reconstruction (run in its Ray task)."""
+    from warpskill.visual import save_pictures
+
+    save_pictures(recon, demo, folder)
+    save_scene(recon, demo, folder, quiet=True)
+
+
+def _evaluate(args) -> int:
+    from warpskill.contract import Reconstruction, evaluate
+
+    recon = Reconstruction.load(args.reconstruction)
+    action = args.action or str(recon.action) or None
+    if not action:
+        raise ValueError("the reconstruction names no action: pass --action")
+    result = evaluate(recon, action, mode=args.mode)
+    for name, ok in result.checks.items():
+        print(f"  {'ok  ' if ok else 'FAIL'} {name}")
+    print(f"{action}: {'success' if result.success else 'failure'}")
+    return 0 if result.success else 3

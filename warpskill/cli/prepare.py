@@ -1,0 +1,72 @@
+"""``warpskill prepare``: one's own video and one source of masks to a demonstration file."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+__all__ = ["add_recording_options", "prepare", "register"]
+
+
+def register(commands) -> None:
+    """Add ``prepare`` to the ``commands`` sub-parsers."""
+    parser = commands.add_parser(
+        "prepare", help="a video and its masks (or one annotated frame) to a demonstration .npz and a contact sheet"
+    )
+    add_recording_options(parser)
+    parser.add_argument("-o", "--out", type=Path, required=True,
+                        help="demonstration .npz (FORMATS.md); the contact sheet goes beside it (.png)")
+    parser.set_defaults(run=_prepare)
+
+
+def add_recording_options(parser: argparse.ArgumentParser) -> None:
+    """The video, exactly one mask source, the contact source, the action, fps and intrinsics."""
+    parser.add_argument("video", type=Path, help="the video file (anything OpenCV reads: .mp4, .avi, ...)")
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--masks", type=Path, metavar="DIR",
+                        help="per-object mask folders DIR/hand/, DIR/object/, DIR/static*/ (one image per frame)")
+    source.add_argument("--labels", type=Path, metavar="DIR",
+                        help="label images, one per frame (1 hand, 2 object, 3, 4, ... static; DAVIS palette or indices)")
+    source.add_argument("--polygons", type=Path, metavar="FRAME.json",
+                        help="polygons on one frame (docs/formats.md, or LabelMe), propagated through the video")
+    source.add_argument("--boxes", type=Path, metavar="ANNOTS.json", help="Something-Else box annotations")
+    parser.add_argument("--video-id", help="the video's id in --boxes (default: the file's only video)")
+    parser.add_argument("--frame", type=int, help="the frame --polygons was drawn on (0-based; overrides the file's)")
+    contact = parser.add_mutually_exclusive_group()
+    contact.add_argument("--contact", type=Path, metavar="CSV", help="per-frame contact, used as given (frame,contact)")
+    contact.add_argument("--detections", type=Path, metavar="CSV",
+                         help="contact detections (frame,in_contact[,score]), filtered as in the paper")
+    parser.add_argument("--action", required=True, help="the action shown (warpskill.ACTIONS), e.g. pick_up")
+    parser.add_argument("--fps", type=float, help="frame rate (default: the video's)")
+    parser.add_argument("--intrinsics", type=float, nargs=4, metavar=("FX", "FY", "CX", "CY"),
+                        help="camera intrinsics of the video's frames [px] (default: 80 x 60 deg field of view)")
+
+
+def prepare(args, demo_path: Path, sheet_path: Path):
+    """Read the recording named by ``args``; write the demonstration and its contact sheet.
+
+    Returns:
+        The demonstration and the video's frames.
+    """
+    from warpskill.data import contact_sheet, read_recording
+
+    demo, frames = read_recording(
+        args.video, masks=args.masks, labels=args.labels, polygons=args.polygons, boxes=args.boxes,
+        video_id=args.video_id, contact=args.contact, detections=args.detections, action=args.action,
+        fps=args.fps, intrinsics=args.intrinsics, frame=args.frame,
+    )
+    demo_path.parent.mkdir(parents=True, exist_ok=True)
+    demo.save(demo_path)
+    on = demo.contact.nonzero()[0]
+    h, w = demo.image_size
+    source = next(name for name in ("masks", "labels", "polygons", "boxes") if getattr(args, name) is not None)
+    print(f"demonstration: {demo_path} ({demo.action}, {demo.num_frames} frames of {w} x {h} at {demo.fps:g} fps, "
+          f"masks from --{source}, {demo.num_static} static; contact in {len(on)} frames, {on[0]}..{on[-1]})")
+    print(f"contact sheet: {contact_sheet(demo, frames, sheet_path)}")
+    return demo, frames
+
+
+def _prepare(args) -> int:
+    out = args.out if args.out.suffix else args.out.with_suffix(".npz")
+    prepare(args, out, out.with_suffix(".png"))
+    return 0

@@ -1,0 +1,53 @@
+"""Torch -> Warp: the one array wrapper and the one launch scope of the engine's autograd bridges
+(:mod:`warpskill.engine.simulation`, :mod:`warpskill.engine.rendering`)."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+
+import torch
+import warp as wp
+
+
+def as_warp(tensor: torch.Tensor, dtype=None, requires_grad: bool = False) -> wp.array:
+    """Zero-copy Warp view of ``tensor`` (detached), with a Warp-owned gradient buffer if
+    ``requires_grad``.
+
+    A non-contiguous tensor is copied first, so only contiguous ones may be written through
+    the view. An empty tensor gives a fresh empty array (Torch may give empty tensors zero
+    strides, which Warp refuses).
+
+    Args:
+        tensor: the Torch tensor; its trailing dimensions hold ``dtype``'s vector or matrix.
+        dtype: Warp value type (e.g. ``wp.vec3``); None: the scalar type of ``tensor``.
+        requires_grad: give the array a gradient buffer.
+    """
+    if tensor.numel() == 0:
+        if dtype is None:
+            dtype = wp.dtype_from_torch(tensor.dtype)
+        shape = tensor.shape[: tensor.ndim - len(getattr(dtype, "_shape_", ()))]
+        device = wp.device_from_torch(tensor.device)
+        return wp.zeros(shape, dtype=dtype, device=device, requires_grad=requires_grad)
+    return wp.from_torch(tensor.detach().contiguous(), dtype=dtype, requires_grad=requires_grad)
+
+
+@contextlib.contextmanager
+def warp_scope(device: torch.device) -> Iterator[None]:
+    """Run Warp on the Torch device: its current stream on CUDA; on the CPU with denormal
+    floats flushed to zero (the mode is restored after). Velocities decaying while an object
+    rests or is held pass through float32's denormal range, where CPU arithmetic is about 100
+    times slower."""
+    if device.type == "cuda":
+        with wp.ScopedStream(wp.stream_from_torch(device)):
+            yield
+        return
+    flushing = torch.tensor(1e-40, dtype=torch.float32).item() == 0.0
+    with wp.ScopedDevice("cpu"):
+        if flushing or not torch.set_flush_denormal(True):
+            yield
+            return
+        try:
+            yield
+        finally:
+            torch.set_flush_denormal(False)

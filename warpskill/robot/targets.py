@@ -1,0 +1,271 @@
+"""The TCP targets of a plan: from home onto the demonstrated path, through the contact, and away.
+
+The plan, sampled every :data:`~warpskill.robot.planner.DT`:
+
+1. lead-in (:data:`LEAD_IN` s, reconstruction time 0): from the home configuration's TCP
+   pose up over the join pose and down onto it (position min-jerk, orientation slerped to
+   the grasp's); the join pose is where the robot takes up the demonstrated hand path, at
+   most :data:`FOLLOW_TIME` s before the pre-grasp and never further than
+   :data:`FOLLOW_RADIUS` from it (the free-hand motion far from the object is not
+   followed); the robot waits there until the demonstration reaches it;
+2. approach: the demonstrated tip path, shifted so that it ends at the pre-grasp pose
+   (:data:`PREGRASP` back along the approach), then a straight move onto the grasp pose
+   at the onset, never faster than :data:`APPROACH_TIME` (without ``follow_hand``, the
+   join pose is the pre-grasp itself);
+3. grasp: the gripper closes (``CLOSE_TIME`` s, the arm waits);
+4. hold: a carried object follows its reconstructed path upright, in its orientation at
+   the grasp, at least :data:`CLEARANCE` above its support; a push follows the object's
+   horizontal displacement at the push height;
+5. release: the gripper opens (``OPEN_TIME`` s) and the TCP backs off along the approach.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from warpskill.contract.geometry import cuboid_corners, min_jerk
+from warpskill.contract.reconstruction import Reconstruction
+from warpskill.robot.grasps import GraspPose
+from warpskill.robot.model import FINGER_SPEED, MAX_OPENING, Scene
+from warpskill.robot.plan import CLOSE_TIME, OPEN_TIME
+from warpskill.robot.planner import DT
+
+__all__ = [
+    "LEAD_IN",
+    "PREGRASP",
+    "Targets",
+    "hold_pose",
+    "key_targets",
+    "lift_clear",
+    "plan_targets",
+    "pose_matrix",
+    "support_height",
+    "translate",
+]
+
+LEAD_IN = 2.5  # [s] from home to the join pose (the last LEAD_SETTLE of it still)
+LEAD_SETTLE = 0.3  # [s]
+LEAD_RISE = 0.1  # [m] the lead-in passes this high above the join pose
+FOLLOW_TIME = 0.8  # [s] the demonstrated hand path is followed at most this long before the pre-grasp ...
+FOLLOW_RADIUS = 0.2  # [m] ... and only where it stays this close to the pre-grasp
+PREGRASP = 0.08  # [m] pre-grasp stand-off along the approach
+APPROACH_TIME = 0.6  # [s] from the pre-grasp to the grasp pose
+RETREAT = 0.10  # [m] back-off along the approach after the release
+RETREAT_TIME = 0.6  # [s]
+SETTLE = 0.5  # [s] still time at the end
+CLEARANCE = 0.003  # [m] a carried object is kept this far above its support
+HOLD_KEYS = 3  # held-object samples among the key targets
+
+
+@dataclasses.dataclass
+class Targets:
+    """Plan samples: times, reconstruction times, TCP targets, gripper openings and the events' times."""
+
+    times: list
+    taus: list
+    targets: list
+    grips: list
+    lead_in: int
+    start_time: float
+    grasp_time: float
+    release_time: float
+
+
+def pose_matrix(pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """The (4, 4) pose of rotation ``rot`` at ``pos``."""
+    T = np.eye(4)
+    T[:3, :3] = rot
+    T[:3, 3] = pos
+    return T
+
+
+def translate(x: float, y: float, z: float) -> np.ndarray:
+    """The (4, 4) translation by (x, y, z)."""
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def support_height(scene: Scene, T_obj: np.ndarray, size: np.ndarray) -> float:
+    """Height [m] of the surface under the object at ``T_obj``: the table or a static box's top."""
+    floor = 0.0
+    radius = 0.5 * min(size[0], size[1])
+    for k in range(len(scene.static_pos)):
+        local = scene.static_rot[k].T @ (T_obj[:3, 3] - scene.static_pos[k])
+        if np.all(np.abs(local[:2]) < scene.static_size[k, :2] / 2 + radius):
+            floor = max(floor, scene.static_pos[k, 2] + scene.static_size[k, 2] / 2)
+    return floor
+
+
+def lift_clear(T_obj: np.ndarray, size: np.ndarray, floor: float) -> np.ndarray:
+    """``T_obj`` raised so that the cuboid's lowest corner is at least :data:`CLEARANCE` above ``floor``."""
+    corners = cuboid_corners(T_obj[:3, 3], T_obj[:3, :3], size)
+    lift = floor + CLEARANCE - corners[:, 2].min()
+    if lift > 0:
+        T_obj = T_obj.copy()
+        T_obj[2, 3] += lift
+    return T_obj
+
+
+def _interp_path(path: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
+    """The point (3,) of ``path`` (T, 3) sampled at times ``t`` at time ``tau`` (linear)."""
+    return np.array([np.interp(tau, t, path[:, i]) for i in range(3)])
+
+
+def _slerp(A: np.ndarray, B: np.ndarray, s: float) -> np.ndarray:
+    """Rotation a fraction ``s`` of the way from ``A`` to ``B`` (3, 3)."""
+    R = A.T @ B
+    angle = math.acos(float(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
+    if angle < 1e-6:
+        return B.copy() if s >= 1.0 else A.copy()
+    axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if np.linalg.norm(axis) < 1e-6:  # a half turn: the axis from the symmetric part
+        axis = np.sqrt(np.clip((np.diag(R) + 1.0) / 2.0, 0.0, None))
+    axis /= np.linalg.norm(axis)
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    a = s * angle
+    return A @ (np.eye(3) + math.sin(a) * K + (1 - math.cos(a)) * K @ K)
+
+
+def hold_pose(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_off: int | None, tau: float,
+              release_shift: np.ndarray) -> np.ndarray:
+    """The TCP target while holding (or pushing) the object at reconstruction time ``tau``."""
+    t_on = float(recon.t[k_on])
+    t_off = float(recon.t[k_off]) if k_off is not None else None
+    T_on = pose_matrix(recon.object_pos[k_on], recon.object_rot[k_on])
+    T_obj = pose_matrix(_interp_path(recon.object_pos, recon.t, tau), T_on[:3, :3])
+    if t_off is not None:
+        T_obj[:3, 3] += release_shift * float(np.clip((tau - t_on) / max(t_off - t_on, 1e-9), 0.0, 1.0))
+    if pose.kind == "push":
+        T = T_on @ pose.pose
+        T[:2, 3] += T_obj[:2, 3] - T_on[:2, 3]
+        return T
+    T_obj = lift_clear(T_obj, recon.object_size, support_height(scene, T_obj, recon.object_size))
+    return T_obj @ pose.pose
+
+
+def _grasp_frames(recon: Reconstruction, pose: GraspPose, k_on: int):
+    """The grasp pose G, where a hook comes down G_down, and the pre-grasp, in the world at the onset."""
+    G = pose_matrix(recon.object_pos[k_on], recon.object_rot[k_on]) @ pose.pose
+    approach = G[:3, 2]
+    outward = approach - approach[2] * np.array([0.0, 0.0, 1.0])
+    G_down = G.copy()
+    G_down[:3, 3] += pose.standoff * outward / max(np.linalg.norm(outward), 1e-9)
+    return G, G_down, G_down @ translate(0, 0, -PREGRASP)
+
+
+def key_targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_off: int | None,
+                release_shift: np.ndarray | None = None) -> list[np.ndarray]:
+    """The task's key TCP poses for ``pose``: pre-grasp, grasp, held samples, release, retreat."""
+    shift = np.zeros(3) if release_shift is None else release_shift
+    _, G_down, pregrasp = _grasp_frames(recon, pose, k_on)
+    t_on = float(recon.t[k_on])
+    t_end = float(recon.t[k_off]) if k_off is not None else float(recon.t[-1])
+    keys = [pregrasp, G_down]
+    for s in np.linspace(0.0, 1.0, HOLD_KEYS + 1)[1:]:
+        keys.append(hold_pose(recon, scene, pose, k_on, k_off, t_on + s * (t_end - t_on), shift))
+    if k_off is not None:
+        retreat = keys[-1].copy()
+        retreat[:3, 3] -= RETREAT * retreat[:3, 2]
+        keys.append(retreat)
+    return keys
+
+
+def plan_targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_off: int | None, slow: float,
+                 release_shift: np.ndarray, home_tcp: np.ndarray, follow_hand: bool = True) -> Targets:
+    """The plan's samples (see the module doc) for ``pose``.
+
+    The demonstration is played ``slow`` times slower than recorded; the carried object
+    drifts linearly by ``release_shift`` (3,) [m] from the grasp to the release;
+    ``home_tcp`` is the TCP pose of the home configuration. Without ``follow_hand`` the
+    robot joins the demonstration at the pre-grasp pose.
+    """
+    step = DT / slow
+    t_on = float(recon.t[k_on])
+    t_off = float(recon.t[k_off]) if k_off is not None else None
+    t_end = float(recon.t[-1])
+    G, G_down, pregrasp = _grasp_frames(recon, pose, k_on)
+    approach = G[:3, 2]
+    app_time = min(APPROACH_TIME, 0.5 * t_on) if t_on > 0 else 0.0
+    t_pre = t_on - app_time
+    path_shift = pregrasp[:3, 3] - _interp_path(recon.hand_pos, recon.t, t_pre)  # the hand path ends at the pre-grasp
+    t_join = t_pre
+    if follow_hand:  # back along the demonstrated path while it stays near the pre-grasp
+        for tau in np.arange(t_pre, max(0.0, t_pre - FOLLOW_TIME) - 1e-9, -DT):
+            if np.linalg.norm(_interp_path(recon.hand_pos, recon.t, tau) + path_shift - pregrasp[:3, 3]) > FOLLOW_RADIUS:
+                break
+            t_join = float(tau)
+    opening = 0.0 if pose.kind == "push" else min(MAX_OPENING, pose.width + 0.02)
+    close_ramp = max(opening / (2 * FINGER_SPEED), DT)
+    out = Targets([], [], [], [], 0, 0.0, 0.0, math.nan)
+
+    def add(tau: float, T: np.ndarray, grip: float) -> None:
+        out.times.append(len(out.times) * DT)
+        out.taus.append(tau)
+        out.targets.append(T)
+        out.grips.append(grip)
+
+    def approach_target(tau: float) -> np.ndarray:  # the demonstrated path, until the pre-grasp
+        T = G.copy()
+        T[:3, 3] = _interp_path(recon.hand_pos, recon.t, float(np.clip(tau, t_join, t_pre))) + path_shift
+        return T
+
+    join = approach_target(t_join)
+    above = join.copy()
+    above[2, 3] = max(join[2, 3] + LEAD_RISE, min(home_tcp[2, 3], join[2, 3] + 2 * LEAD_RISE))
+    n_lead = int(round(LEAD_IN / DT))
+    n_move = n_lead - int(round(LEAD_SETTLE / DT))
+    n_up = int(0.65 * n_move)
+    for i in range(n_lead):
+        T = join.copy()
+        if i < n_up:
+            s = float(min_jerk(np.array((i + 1) / n_up)))
+            T[:3, :3] = _slerp(home_tcp[:3, :3], join[:3, :3], s)
+            T[:3, 3] = (1 - s) * home_tcp[:3, 3] + s * above[:3, 3]
+        elif i < n_move:
+            s = float(min_jerk(np.array((i + 1 - n_up) / (n_move - n_up))))
+            T[:3, 3] = (1 - s) * above[:3, 3] + s * join[:3, 3]
+        add(0.0, T, opening)
+    out.lead_in = n_lead
+    out.start_time = len(out.times) * DT
+    for tau in np.arange(0.0, t_pre, step):
+        add(float(tau), approach_target(float(tau)), opening)
+    # The straight move onto the grasp takes APPROACH_TIME at least, also where the demonstration
+    # leaves less (a contact from the first frames): the reconstruction's time then runs slower.
+    n_app = max(int(round(APPROACH_TIME / DT)), int(round(app_time / step)))
+    for i in range(n_app):
+        s = min_jerk(np.array((i + 1) / n_app))
+        T = G.copy()
+        T[:3, 3] = (1 - s) * pregrasp[:3, 3] + s * G_down[:3, 3]
+        add(t_pre + (t_on - t_pre) * i / n_app, T, opening)
+    out.grasp_time = len(out.times) * DT
+    n_close = int(round(CLOSE_TIME / DT))
+    for i in range(n_close):
+        T = G.copy()
+        T[:3, 3] = G_down[:3, 3] + min_jerk(np.array((i + 1) / n_close)) * (G[:3, 3] - G_down[:3, 3])
+        add(t_on, T, opening * max(0.0, 1.0 - (i * DT) / close_ramp))
+
+    def hold_target(tau: float) -> np.ndarray:
+        return hold_pose(recon, scene, pose, k_on, k_off, tau, release_shift)
+
+    hold_end = t_off if t_off is not None else t_end
+    for tau in np.arange(t_on, hold_end, step):
+        add(float(tau), hold_target(float(tau)), 0.0)
+    if t_off is None:
+        last = hold_target(t_end)
+        for _ in range(int(round(SETTLE / DT))):
+            add(t_end, last, 0.0)
+        return out
+    out.release_time = len(out.times) * DT
+    placed = hold_target(t_off)
+    for i in range(int(round(OPEN_TIME / DT))):
+        add(t_off, placed, opening * min(1.0, (i * DT) / close_ramp))
+    for tau in np.arange(t_off, t_end + SETTLE, step):
+        s = min_jerk(np.array((tau - t_off) / RETREAT_TIME))
+        T = placed.copy()
+        T[:3, 3] -= s * RETREAT * approach
+        add(float(min(tau, t_end)), T, opening)
+    return out
