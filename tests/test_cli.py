@@ -57,10 +57,16 @@ def _snapshot(folder):
     return {path.relative_to(folder): path.read_bytes() for path in folder.rglob("*") if path.is_file()}
 
 
-def _evaluation_line(stdout: str, action: str) -> str:
-    lines = [line for line in stdout.splitlines() if line.startswith(f"{action}: ")]
-    assert len(lines) == 1, stdout
-    return lines[0]
+def _evaluation_line(stdout: str, action: str, *, replayed: bool = False) -> str:
+    """The verdict line of the reconstruction (the first), or of the replay (after ``replay:``)."""
+    lines = stdout.splitlines()
+    verdicts = [k for k, line in enumerate(lines) if line.startswith(f"{action}: ")]
+    replays = [k for k, line in enumerate(lines) if line.startswith("replay: ")]
+    assert len(verdicts) == 1 + len(replays), stdout
+    if replayed:
+        assert replays and verdicts[-1] > replays[-1], stdout
+        return lines[verdicts[-1]]
+    return lines[verdicts[0]]
 
 
 def test_optimize_writes_the_reconstruction_pictures_and_evaluation(optimized, demo_file):

@@ -15,7 +15,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "warpskill"
-LAYERS = ("contract", "data", "engine", "optimizer", "robot", "visual", "bench")
+LAYERS = ("contract", "data", "engine", "optimizer", "robot", "visual", "cluster", "bench")
 
 
 def _imports_from(path: Path):

@@ -151,7 +151,7 @@ def test_a_tilted_cuboid_rests_on_a_face():
     from warpskill.robot import fit_sizes
 
     recon = truth("push_right_to_left", 0)
-    a = np.radians(20.0)
+    a = np.radians(20.0)  # more than UPRIGHT_TILT
     tilt = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(a), -np.sin(a)], [0.0, np.sin(a), np.cos(a)]])
     tilted = dataclasses.replace(recon, object_rot=tilt @ recon.object_rot)
     fitted, note = fit_sizes(tilted)

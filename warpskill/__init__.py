@@ -43,7 +43,7 @@ _EXPORTS = {
     "Intrinsics": "contract.camera",
     "save_pictures": "visual.pictures",
     "view": "visual.rerun_view",
-    **{layer: None for layer in ("contract", "data", "engine", "optimizer", "robot", "visual", "bench")},
+    **{layer: None for layer in ("contract", "data", "engine", "optimizer", "robot", "visual", "cluster", "bench")},
 }
 
 __all__ = sorted(_EXPORTS)

@@ -51,8 +51,10 @@ AUTO = "auto"
 HOOK_PENALTY = 1000.0  # a pull hooks the cuboid only when no grasp is feasible
 SHALLOW_PENALTY = 100.0  # a shallow top grasp is taken only when the deeper ones are infeasible
 OFF_CENTRE_PENALTY = 45.0  # [deg equivalent] edge and side grasps hold a carried cuboid off its centre: it swings
-RELEASE_SHIFTS = (0.01, 0.02, 0.035, 0.05)  # [m] tried moves of the set-down place away from a static box, along the fingers
+RELEASE_SHIFTS = (0.01, 0.02, 0.035, 0.05, 0.075, 0.1)  # [m] tried moves of the set-down place away from a static box, along the fingers
 SHIFT_PENALTY = 5000.0  # per metre of release shift
+NEAR_SHIFT = 0.05  # [m] a release shift further than this comes after every other grasp but a hook
+FAR_SHIFT_PENALTY = 1000.0
 TALL = 0.12  # [m] an object taller than this pivots about an edge grasp (held at its top edge) ...
 TALL_EDGE_PENALTY = 90.0  # [deg equivalent] ... which then comes after the side grasps
 MIN_PUSH_TRAVEL = 0.01  # [m] a push or pull moving the object less than this keeps the demonstrated approach
@@ -232,6 +234,7 @@ def _feasible(planner: Planner, scene: Scene, task: dict, T_on: np.ndarray, T_of
                     continue
             cost = angle + _penalty(pose, task["height"]) + 10.0 * float(np.abs(q - HOME_Q).sum())
             cost += SHIFT_PENALTY * float(np.linalg.norm(shift))
+            cost += FAR_SHIFT_PENALTY if np.linalg.norm(shift) > NEAR_SHIFT + 1e-9 else 0.0
             heapq.heappush(ready, (cost, i, pose, shift))
         if not ready:
             return

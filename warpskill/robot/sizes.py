@@ -5,8 +5,9 @@ or a substitute for an object the gripper cannot hold) and keeps the demonstrati
 object-centre path in the horizontal plane and every static box's footprint centre stay;
 heights follow the sizes, so that each static box keeps its bottom where it was and the
 object keeps its gap to its support (the table or a static top; while held, the support's
-change is blended linearly from the grasp to the release). The object is always made to
-rest on a face (:func:`upright`: a reconstruction's tilt would topple it in the replay).
+change is blended linearly from the grasp to the release). Until the contact onset the
+object is made to rest on a face (:func:`upright`: a reconstruction's clear tilt would
+topple it in the replay before the robot reaches it).
 
 A grasp action (pick up, put ...) on an object wider than the gripper's usable opening on
 every face (both horizontal extents at the grasp onset) gets a substitute that fits: its
@@ -29,6 +30,9 @@ __all__ = ["SUBSTITUTE_WIDTH", "USABLE_OPENING", "fit_sizes", "needs_substitute"
 
 USABLE_OPENING = MAX_OPENING - FIT_MARGIN
 """[m] widest object edge the gripper closes on."""
+
+UPRIGHT_TILT = 10.0
+"""[deg] a cuboid tilted further than this from resting on a face is set upright."""
 
 SUBSTITUTE_WIDTH = USABLE_OPENING - 0.01
 """[m] horizontal extents of a substitute object (the usable opening less a margin)."""
@@ -55,13 +59,16 @@ def _support(xy: np.ndarray, radius: float, static_pos, static_rot, static_size)
 def upright(rot: np.ndarray) -> np.ndarray:
     """(F, 3, 3) the rotations ``rot`` turned so that the cuboid rests on a face, heading kept.
 
-    The cuboid axis nearest the world's vertical becomes vertical; the next axis keeps its
-    horizontal direction. A cuboid can only rest on a face: a tilted reconstruction would
-    fall over in the replay before the robot reaches it.
+    Where the cuboid axis nearest the world's vertical is tilted by more than
+    :data:`UPRIGHT_TILT`, it becomes vertical and the next axis keeps its horizontal
+    direction. A cuboid can only rest on a face: a clearly tilted reconstruction would
+    topple in the replay before the robot reaches it (a slight tilt just settles).
     """
-    out = np.empty_like(rot)
+    out = np.array(rot, dtype=float, copy=True)
     for f, R in enumerate(rot):
         i = int(np.argmax(np.abs(R[2])))
+        if abs(R[2, i]) >= math.cos(math.radians(UPRIGHT_TILT)):
+            continue  # settles onto its face in the replay
         j, k = (i + 1) % 3, (i + 2) % 3
         col_i = np.array([0.0, 0.0, math.copysign(1.0, R[2, i])])
         col_j = R[:, j] - (R[:, j] @ col_i) * col_i
@@ -116,7 +123,8 @@ def fit_sizes(recon: Reconstruction, *, object_size=None, static_sizes=None,
         notes.append(f"object: the {' x '.join(f'{s:.3f}' for s in old)} m cuboid is wider than the gripper's "
                      f"{USABLE_OPENING:.3f} m usable opening on every face: the robot handles a "
                      f"{' x '.join(f'{s:.3f}' for s in size)} m one (height kept; --keep-size refuses instead)")
-    rot = upright(recon.object_rot)
+    rot = recon.object_rot.copy()  # resting until the contact: it must rest on a face (later tilts are noise)
+    rot[: _onset(recon) + 1] = upright(recon.object_rot[: _onset(recon) + 1])
     if np.allclose(size, recon.object_size) and np.allclose(statics, recon.static_size) and \
             np.allclose(rot, recon.object_rot, atol=1e-9):
         return recon, "; ".join(notes)
