@@ -39,26 +39,10 @@ COLOURS = {"hand": (230, 60, 60), "object": (40, 200, 60), "static": (60, 120, 2
 """RGB of each role on the contact sheet."""
 
 
-def prepare_recording(
-    video: str | os.PathLike,
-    *,
-    masks: str | os.PathLike | None = None,
-    labels: str | os.PathLike | None = None,
-    polygons: str | os.PathLike | None = None,
-    boxes: str | os.PathLike | None = None,
-    video_id: str | None = None,
-    contact: str | os.PathLike | None = None,
-    detections: str | os.PathLike | None = None,
-    action: str,
-    fps: float | None = None,
-    intrinsics: tuple[float, float, float, float] | None = None,
-    frame: int | None = None,
-) -> Demonstration:
-    """A video and one source of masks as a demonstration (:func:`read_recording` without the frames)."""
-    return read_recording(
-        video, masks=masks, labels=labels, polygons=polygons, boxes=boxes, video_id=video_id, contact=contact,
-        detections=detections, action=action, fps=fps, intrinsics=intrinsics, frame=frame,
-    )[0]
+def prepare_recording(video: str | os.PathLike, **sources) -> Demonstration:
+    """A video and one source of masks as a demonstration: :func:`read_recording` (same
+    keyword arguments) without the video's frames."""
+    return read_recording(video, **sources)[0]
 
 
 def read_recording(
