@@ -7,6 +7,13 @@ and the pictures. A video that fails is reported with its reason and counts as a
 in the table; the run goes on. A video whose ``reconstruction.npz`` exists is not
 reconstructed again, only evaluated. With ``workers`` the videos are reconstructed over
 Ray (:func:`warpskill.cluster.optimize_folder`), that many at a time, under one progress bar.
+
+With ``robot``, every reconstruction then goes through the robot step of ``warpskill bench
+robot`` (:func:`warpskill.bench.end_to_end.robot_step`): a Panda plan (or the reason there is
+none, one line), its replay in MuJoCo and Newton judged by the same criteria, kept as
+``OUT/<id>/plan.npz`` and ``replay_<engine>.npz`` (and ``replay.mp4`` with ``video``). The
+table then has the rows ``planned``, ``replay <engine>`` and ``end to end`` (the
+reconstruction and every replay meet the criteria), and a per-video table follows it.
 """
 
 from __future__ import annotations
@@ -15,7 +22,18 @@ import os
 import time
 import traceback
 from pathlib import Path
+from typing import Sequence
 
+from warpskill.bench.end_to_end import (
+    ENGINES,
+    RobotOutcome,
+    agreement,
+    agreement_line,
+    one_line,
+    robot_rows,
+    robot_step,
+    timing_lines,
+)
 from warpskill.contract.evaluation import evaluate, success_table
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.data.box_annotations import (
@@ -38,6 +56,9 @@ def bench_something_else(
     pictures: bool = True,
     workers: int | None = None,
     address: str | None = None,
+    robot: bool = False,
+    engines: Sequence[str] = ENGINES,
+    video: bool = False,
 ) -> dict:
     """Reconstruct and evaluate every annotated video; print progress and the table.
 
@@ -52,10 +73,15 @@ def bench_something_else(
             after the other in this process. Without Ray installed, says how to get it and
             runs serially.
         address: a Ray cluster to join (default ``RAY_ADDRESS``; none: a local Ray).
+        robot: also plan each reconstruction for the Panda and replay it (see above).
+        engines: the replay engines of ``robot``.
+        video: with ``robot``, also write ``OUT/<id>/replay.mp4`` (MuJoCo's rendering of the plan).
 
     Returns:
         ``{"rows": {row: [(action, success)]}, "failures": {video_id: reason},
-        "seconds": {video_id: seconds}, "wall_seconds": seconds}``.
+        "seconds": {video_id: seconds}, "wall_seconds": seconds}``; with ``robot`` also
+        ``"robot": {video_id: RobotOutcome or None}`` and ``"agreement"``
+        (:func:`~warpskill.bench.end_to_end.agreement`).
     """
     from warpskill.optimizer.pipeline import optimize
     from warpskill.visual.pictures import save_pictures
@@ -66,12 +92,13 @@ def bench_something_else(
         raise ValueError(f"videos not in the annotation files: {', '.join(unknown)}")
     out = Path(out)
     wall = time.perf_counter()
+    step = _RobotStep(engines, device, video) if robot else None
     if workers is not None or address:
         from warpskill.cluster import INSTALL_HINT
         from warpskill.cluster.runner import ray_available
 
         if ray_available():
-            return _bench_on_ray(table, videos or list(table), out, iterations, device, pictures, workers, address)
+            return _bench_on_ray(table, videos or list(table), out, iterations, device, pictures, workers, address, step)
         print(f"--workers needs Ray, which is not installed ({INSTALL_HINT}): running serially")
     results, failures, seconds = [], {}, {}
     for vid in videos or list(table):
@@ -101,6 +128,8 @@ def bench_something_else(
                 (folder / "error.txt").write_text(traceback.format_exc())
             if video.action:  # without an action it has no column in the table
                 results.append((video.action, False))
+                if step is not None:
+                    step.skip(vid, video.action)
             print(f"{vid:>6} {video.action or '?':<20} ERROR {failures[vid]}", flush=True)
             continue
         seconds[vid] = time.perf_counter() - start
@@ -108,10 +137,12 @@ def bench_something_else(
         failed = [name for name, ok in evaluation.checks.items() if not ok]
         verdict = "ok  " if evaluation.success else "fail (" + ", ".join(failed) + ")"
         print(f"{vid:>6} {video.action:<20} {verdict}  {status}, {seconds[vid]:.1f} s, {len(notes)} note(s)", flush=True)
-    return _report(results, failures, seconds, time.perf_counter() - wall, "serial, in this process")
+        if step is not None:
+            step.run(vid, video.action, recon, evaluation.success, folder)
+    return _report(results, failures, seconds, time.perf_counter() - wall, "serial, in this process", step)
 
 
-def _bench_on_ray(table, vids, out: Path, iterations, device, pictures, workers, address) -> dict:
+def _bench_on_ray(table, vids, out: Path, iterations, device, pictures, workers, address, step) -> dict:
     """The videos' demonstrations built here, reconstructed over Ray, then evaluated here."""
     from warpskill.cluster.runner import optimize_folder
     from warpskill.visual.pictures import save_pictures
@@ -142,11 +173,14 @@ def _bench_on_ray(table, vids, out: Path, iterations, device, pictures, workers,
                 raise RuntimeError(failures[vid])
             if not outcome.ok:
                 raise RuntimeError(outcome.reason)
-            evaluation = evaluate(Reconstruction.load(outcome.reconstruction), video.action)
+            recon = Reconstruction.load(outcome.reconstruction)
+            evaluation = evaluate(recon, video.action)
         except Exception as exc:
             if vid not in failures:
                 failures[vid] = str(exc) if isinstance(exc, RuntimeError) else f"{type(exc).__name__}: {exc}"
                 results.append((video.action, False))
+            if step is not None and video.action:
+                step.skip(vid, video.action)
             print(f"{vid:>6} {video.action or '?':<20} ERROR {failures[vid]}", flush=True)
             continue
         seconds[vid] = outcome.seconds
@@ -156,18 +190,82 @@ def _bench_on_ray(table, vids, out: Path, iterations, device, pictures, workers,
         status = "reconstructed" if outcome.status == "done" else outcome.status
         print(f"{vid:>6} {video.action:<20} {verdict}  {status}, {outcome.seconds:.1f} s in its task "
               f"({outcome.cpu_seconds:.1f} s CPU), {len(notes[vid])} note(s)", flush=True)
+        if step is not None:
+            step.run(vid, video.action, recon, evaluation.success, out / vid)
     cpu = sum(o.cpu_seconds for o in summary.outcomes.values())
     where = f"{summary.workers} Ray worker(s), Ray start-up {summary.startup_seconds:.1f} s, {cpu:.1f} s CPU in the tasks"
-    return _report(results, failures, seconds, time.perf_counter() - wall, where)
+    return _report(results, failures, seconds, time.perf_counter() - wall, where, step)
 
 
-def _report(results, failures, seconds, wall: float, where: str) -> dict:
+class _RobotStep:
+    """The robot step per video (:func:`robot_step`), its printed line and the outcomes so far."""
+
+    def __init__(self, engines: Sequence[str], device: str, video: bool):
+        from warpskill.robot import prefer_headless_gl
+
+        prefer_headless_gl()
+        self.engines, self.device, self.video = tuple(engines), device, video
+        self.cases: list = []  # (video_id, action, reconstruction ok, outcome or None)
+
+    def run(self, vid: str, action: str, recon, reconstructed: bool, folder: Path) -> None:
+        try:
+            outcome = robot_step(recon, folder, engines=self.engines, device=self.device, video=self.video)
+            line = outcome.summary()
+        except Exception as exc:  # a messy real scene must not stop the benchmark either
+            outcome = RobotOutcome(reason=f"{type(exc).__name__}: {one_line(exc)}")
+            (folder / "robot_error.txt").write_text(traceback.format_exc())
+            line = f"robot step failed ({outcome.reason})"
+        self.cases.append((vid, action, reconstructed, outcome))
+        print(f"{'':>6} {'robot':<20} {line[:200]}", flush=True)
+
+    def skip(self, vid: str, action: str) -> None:
+        """A video without a reconstruction: every robot column fails."""
+        self.cases.append((vid, action, False, None))
+
+    def report(self) -> dict:
+        outcomes = [outcome for *_, outcome in self.cases]
+        print()
+        print("| video | action | reconstruction | plan | " + " | ".join(f"{e} replay" for e in self.engines) + " |")
+        print("| --- | --- | --- | --- | " + " | ".join("---" for _ in self.engines) + " |")
+        for vid, action, reconstructed, outcome in self.cases:
+            if outcome is None:
+                plan = "no reconstruction"
+            elif outcome.planned:
+                plan = "found"
+            else:
+                plan = f"none: {outcome.reason}".replace("|", "/")
+            cells = [_verdict(outcome, engine) for engine in self.engines]
+            print(f"| {vid} | {action} | {'ok' if reconstructed else 'fail'} | {plan} | " + " | ".join(cells) + " |")
+        end = [reconstructed and outcome is not None and outcome.replayed for _, _, reconstructed, outcome in self.cases]
+        if end:
+            print(f"\nend to end (reconstruction and every replay meet the criteria): {sum(end)}/{len(end)} "
+                  f"({100.0 * sum(end) / len(end):.1f} %)")
+        for line in timing_lines(outcomes):
+            print(line)
+        line = agreement_line(outcomes)
+        if line:
+            print(line)
+        return {"robot": {vid: outcome for vid, _, _, outcome in self.cases}, "agreement": agreement(outcomes)}
+
+
+def _verdict(outcome: RobotOutcome | None, engine: str) -> str:
+    """A per-video table cell: ``ok``, ``fail (checks)`` or ``-`` (not replayed)."""
+    if outcome is None or engine not in outcome.replays:
+        return "-"
+    return "ok" if outcome.success(engine) else f"fail ({', '.join(outcome.failed_checks(engine))})"
+
+
+def _report(results, failures, seconds, wall: float, where: str, step: _RobotStep | None = None) -> dict:
     rows = {ROW: results}
+    if step is not None:
+        rows = robot_rows([(action, ok, outcome) for _, action, ok, outcome in step.cases], step.engines,
+                          reconstruction_row=ROW)
     print()
     print(success_table(rows))
     if failures:
         print(f"\n{len(failures)} video(s) failed (counted as failures):")
         for vid, reason in failures.items():
             print(f"  {vid}: {reason}")
+    extra = step.report() if step is not None else {}
     print(f"\nwall time: {wall:.1f} s ({where}; {sum(seconds.values()):.1f} s of reconstruction)")
-    return {"rows": rows, "failures": failures, "seconds": seconds, "wall_seconds": wall}
+    return {"rows": rows, "failures": failures, "seconds": seconds, "wall_seconds": wall, **extra}

@@ -58,6 +58,11 @@ def register(commands) -> None:
     real.add_argument("--workers", type=int, metavar="N",
                       help="reconstruct on N Ray workers at a time (one per core; needs the cluster extra)")
     real.add_argument("--ray-address", metavar="ADDR", help="join this Ray cluster (default: $RAY_ADDRESS)")
+    real.add_argument("--robot", action="store_true",
+                      help="also plan each reconstruction for the Panda and replay it (the end-to-end table)")
+    real.add_argument("--engines", nargs="+", choices=("mujoco", "newton"), default=["mujoco", "newton"],
+                      help="replay engines of --robot")
+    real.add_argument("--video", action="store_true", help="with --robot, also write OUT/<video>/replay.mp4")
     real.set_defaults(run=_bench_something_else)
 
 
@@ -104,8 +109,11 @@ def _bench_robot(args) -> int:
 def _bench_something_else(args) -> int:
     from warpskill.bench.something_else import bench_something_else
 
+    if args.video and not args.robot:
+        raise ValueError("--video needs --robot")
     bench_something_else(
         args.annotations, args.phases, args.actions, out=args.out, iterations=args.iterations,
         device=args.device, videos=args.videos, workers=args.workers, address=args.ray_address,
+        robot=args.robot, engines=args.engines, video=args.video,
     )
     return 0

@@ -32,9 +32,19 @@ on this arm and its friction let the cuboid slip between drive-pushed fingers,
 squeezed, and ``SolverMuJoCo`` needs ``mujoco-warp`` (and would run MuJoCo's physics
 again). Steel at 4 ms steps halves the replay time but doubles the largest deviation of a
 pushed cuboid from MuJoCo's path (12 cm instead of 6 cm on the synthetic pushes), hence
-the 2 ms step. On two CPU cores a step takes about 3 ms (mostly kernel-launch overhead), a
-replay about 1.5 s of wall time per simulated second; the drive targets are uploaded once
-and the host reads the state back only at the sampled frames.
+the 2 ms step.
+
+A step is about 60 kernel launches (drive targets, Steel's stages, the collision pipeline);
+launched one by one from Python, packing their arguments took about 2.5 ms of a 3 ms step on
+the CPU. The replay therefore records one step as a Warp graph (``wp.ScopedCapture``:
+Warp 1.19's CPU graphs, which replay the recorded launches from C++, or a CUDA graph on a
+GPU), two of them for the two ways round of the state swap, and launches a graph per step:
+the same kernels on the same arrays, so the replay is bit for bit the one of per-kernel
+launches (``simulate(..., capture=False)``), at about 0.4 ms a step on one CPU core (about
+2 s of CPU time for an 8 s plan instead of 10 s). The drive targets of every step are
+uploaded once; a one-thread kernel in the graph copies the current step's row and advances
+a step counter on the device, and the host reads the state back only at the sampled frames.
+Where graphs cannot be captured, each step launches its kernels itself.
 
 Every value (the scene's, the drives', the solver's) comes from the scene description
 ``assets/robot_scene.toml`` that the MuJoCo replay reads too
@@ -43,6 +53,7 @@ Every value (the scene's, the drives', the solver's) comes from the scene descri
 
 from __future__ import annotations
 
+import functools
 import re
 
 import numpy as np
@@ -175,8 +186,13 @@ def build_model(plan: RobotPlan, recon: Reconstruction, *, device: str | None = 
     return model, info
 
 
-def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, device: str | None = None) -> dict[str, np.ndarray]:
+def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, device: str | None = None,
+             capture: bool | None = None) -> dict[str, np.ndarray]:
     """Run the plan; sample the TCP, the object and the finger contacts at plan ``times``.
+
+    ``capture``: replay each step as a captured Warp graph (default: the scene description's
+    ``newton.capture_graph``); False launches every kernel from Python (the same physics,
+    several times slower on the CPU).
 
     Returns the arrays of :func:`warpskill.robot.replay_mujoco.simulate` (``q``: the simulated
     arm joints).
@@ -215,12 +231,23 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, devic
         targets[:, info["finger_coords"]] = np.interp(t, plan.t, plan.gripper)[:, None] / 2
         width = targets.shape[1]
         targets = wp.array(targets.reshape(-1), dtype=wp.float32)
+        row = wp.zeros(1, dtype=wp.int32)  # the step whose targets the next step reads (advanced on the device)
+        set_targets = _target_kernel()
+
+        def advance(source, target) -> None:
+            """One physics step ``source -> target``, then the contacts of ``target``."""
+            wp.launch(set_targets, dim=1, inputs=[targets, row, width, steps], outputs=[control.joint_target_q])
+            solver.step(source, target, control, contacts, timestep)
+            pipeline.collide(target, contacts)
+
+        pipeline.collide(state_0, contacts)
+        use_graph = options.capture_graph if capture is None else capture
+        graphs = _capture(advance, state_0, state_1) if use_graph else None
         finger_bodies = set(info["finger_bodies"])
         shape_body = model.shape_body.numpy()
         out = {"tcp": [], "object_pos": [], "object_rot": [], "held": [], "q": []}
         k = 0
         for step in range(steps):
-            pipeline.collide(state_0, contacts)
             if times[k] <= t[step] + 1e-9:
                 body_q, joint_q = state_0.body_q.numpy(), state_0.joint_q.numpy()
                 touched = {int(shape_body[s]) for s in _touching(contacts, info["object_shape"], body_q, shape_body)}
@@ -234,10 +261,50 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, devic
                     k += 1
                 if k >= len(times):
                     break
-            wp.copy(control.joint_target_q, targets, dest_offset=0, src_offset=step * width, count=width)
-            solver.step(state_0, state_1, control, contacts, timestep)
+            if graphs is not None:
+                wp.capture_launch(graphs[step % 2])  # state_0 is the first state on even steps
+            else:
+                advance(state_0, state_1)
             state_0, state_1 = state_1, state_0
     return {key: np.asarray(value) for key, value in out.items()}
+
+
+@functools.cache
+def _target_kernel():
+    """The Warp kernel that copies one step's drive targets and advances the step counter."""
+    import warp as wp
+
+    @wp.kernel
+    def set_step_targets(targets: wp.array(dtype=wp.float32), row: wp.array(dtype=wp.int32), width: int,
+                         rows: int, joint_target_q: wp.array(dtype=wp.float32)):
+        start = wp.min(row[0], rows - 1) * width
+        for j in range(width):
+            joint_target_q[j] = targets[start + j]
+        row[0] = row[0] + 1
+
+    return set_step_targets
+
+
+def _capture(advance, state_0, state_1):
+    """Two captured graphs, ``advance(state_0, state_1)`` and ``advance(state_1, state_0)``, or None.
+
+    Recording a graph runs nothing (on the CPU, Warp records the launches; on CUDA the
+    stream is captured); replaying one launches its kernels from C++ (CPU) or as a CUDA
+    graph, without Python's per-launch argument packing, about 60 launches a step. None
+    where this Warp cannot capture on the device (the replay then launches each step's
+    kernels itself).
+    """
+    import warp as wp
+
+    graphs = []
+    for source, target in ((state_0, state_1), (state_1, state_0)):
+        try:
+            with wp.ScopedCapture() as capture:
+                advance(source, target)
+        except (RuntimeError, NotImplementedError):  # no graph capture on this device / Warp
+            return None
+        graphs.append(capture.graph)
+    return graphs
 
 
 def _touching(contacts, shape: int, body_q: np.ndarray, shape_body: np.ndarray, *, tolerance: float = 1e-3) -> set[int]:

@@ -148,6 +148,9 @@ class NewtonConfig:
         contact_gap: distance at which contacts are detected [m].
         row_capacity: constraint rows of the robot per step.
         limit_gap: a joint limit's row is created this close to it [rad or m].
+        capture_graph: replay each physics step (drive targets, solver step, collision
+            detection) as a captured Warp graph (a CUDA graph on a GPU, Warp's CPU graph
+            on the CPU) instead of launching its kernels one by one from Python.
     """
 
     timestep: float
@@ -155,6 +158,7 @@ class NewtonConfig:
     contact_gap: float
     row_capacity: int
     limit_gap: float
+    capture_graph: bool
 
 
 @dataclasses.dataclass(frozen=True)
