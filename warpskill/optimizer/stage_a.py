@@ -80,16 +80,17 @@ def _band_width(pixels: np.ndarray) -> float:
     return float(np.sqrt(12.0 * max(np.linalg.eigvalsh(np.cov(pixels.T))[0], 1.0 / 12.0)))
 
 
-def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, fx: float) -> float | None:
+def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, fx: float, frames: np.ndarray | None = None) -> float | None:
     """Median camera depth [m] of the hand tip, from the mask's width near the tip.
 
     The hand is a cylinder of known radius R, so a stretch of mask w [px] wide lies at
     depth 2 R fx / w. The arm widens towards the camera: only the pixels within a few
     widths of the tip (the hand pixel nearest ``targets_of`` (N, 2), the object's centroid)
-    are measured.
+    are measured. ``frames`` (N,) bool: the frames to measure (default: all).
     """
     depths = []
-    for k in np.flatnonzero(geom.visible):
+    visible = geom.visible if frames is None else geom.visible & frames
+    for k in np.flatnonzero(visible):
         pixels = geom.pixels(k)
         if len(pixels) < 6:
             continue
@@ -142,10 +143,17 @@ def initial_guess(
     object_geom = _MaskGeometry(targets[:, 1])
 
     object_centroid = _fill_missing(object_geom.centroid, object_geom.visible)
-    depth = _hand_depth(hand_geom, object_centroid, K[0, 0])
+    # The scene's depth: the hand tip's, where it touches the object (in all frames if
+    # there is no contact); the object's bottom edge at that depth, before the hand first
+    # touches it (it stands on the ground then), gives the camera height.
+    touching = np.asarray(contact, bool)
+    depth = _hand_depth(hand_geom, object_centroid, K[0, 0], touching) if touching.any() else None
+    if depth is None:
+        depth = _hand_depth(hand_geom, object_centroid, K[0, 0])
+    before = object_geom.visible & (np.arange(N) < (np.flatnonzero(touching)[0] if touching.any() else N))
     h0 = INITIAL_CAMERA_HEIGHT
     if depth is not None:
-        bottom_row = np.nanmedian(object_geom.box[:, 3])
+        bottom_row = np.median(object_geom.box[before, 3]) if before.any() else np.nanmedian(object_geom.box[:, 3])
         ray = np.array([0.0, (bottom_row - K[1, 2]) / K[1, 1], 1.0])
         h0 = float(np.clip(depth * (ray @ R_wc.T) @ np.array([0.0, 0.0, -1.0]), 0.15, 1.5))
     centre = np.array([0.0, 0.0, h0])
