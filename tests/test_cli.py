@@ -250,7 +250,7 @@ def test_demo_synthesises_reconstructs_and_reports(tmp_path, monkeypatch, capsys
     # The command's own pipeline, on a small synthetic video (its default size is slow here).
     real = warpskill.synthetic.make_demonstration
     small = lambda action, **kwargs: real(action, **kwargs, **SMALL_DEMO)  # noqa: E731
-    monkeypatch.setattr(warpskill.synthetic, "make_demonstration", small)
+    monkeypatch.setattr(warpskill, "make_demonstration", small)  # the public name the command uses
     out = tmp_path / "demo"
     assert main(["demo", "-o", str(out), "--iterations", "4", "--quiet"]) == 0
     demo = Demonstration.load(out / "demonstration.npz")
