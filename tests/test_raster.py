@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 import warp as wp
-from warpskill.kernels import raster
+from warpskill.engine.rendering import raster
 
 from warpskill.contract.camera import Intrinsics
 from warpskill.engine.primitives import (

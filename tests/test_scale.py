@@ -56,3 +56,57 @@ def test_the_command_line_takes_known_lengths():
     args = parser.parse_args(["--known", "object_height=0.10", "static_height=0.05"])
     assert parse_known(args.known) == {"object_height": 0.10, "static_height": 0.05}
     assert np.isclose(parse_known(args.known)["object_height"], 0.1)
+
+
+def test_the_initial_scale_comes_from_the_contact_and_the_resting_object():
+    # Stage (a)'s guess reads the scene's depth off the hand's width where it touches the
+    # object, and the camera height off the object's bottom edge before the hand touches
+    # it (it stands on the ground then): what the masks do elsewhere (a lifted object, a
+    # hand near the camera) does not change the guess.
+    import torch
+
+    from warpskill.optimizer.inputs import working_inputs
+    from warpskill.optimizer.stage_a import initial_guess
+
+    demo = make_demonstration("pick_up", seed=0, image_size=(120, 214), duration=3.0)
+    given = working_inputs(demo, OptimizeConfig(image_scale=0.5), torch.device("cpu"))
+    masks, contact = given.masks.numpy(), given.contact_signal
+    guess = initial_guess(masks, contact, given.intrinsics, demo.num_static)
+    onset, last = np.flatnonzero(contact)[[0, -1]]
+    spoiled = masks.copy()
+    spoiled[onset:, 1] = np.roll(masks[onset:, 1], -8, axis=1)  # the object's box rises after the onset
+    spoiled[last + 1:, 0] = np.maximum(masks[last + 1:, 0], np.roll(masks[last + 1:, 0], 3, axis=2))  # wider hand
+    moved = initial_guess(spoiled, contact, given.intrinsics, demo.num_static)
+    assert float(moved.camera_height) == pytest.approx(float(guess.camera_height), rel=0.05)
+    truth = float(demo.truth["camera_height"])
+    assert abs(float(guess.camera_height) / truth - 1) < 0.4
+
+
+def test_stage_a_weighs_the_hand_by_its_own_weight():
+    # The hand's known width is what fixes the scene's scale in stage (a): its silhouette
+    # counts there with ``initial_hand``, in stage (b) with ``hand``.
+    from dataclasses import replace
+
+    import torch
+
+    from warpskill.optimizer.inputs import working_inputs
+    from warpskill.optimizer.losses import diou_loss
+    from warpskill.optimizer.scene import SceneTrajectories, render_scene
+    from warpskill.optimizer.stage_a import initial_objective
+    from warpskill.optimizer.weights import LossWeights
+
+    demo = make_demonstration("push_left_to_right", seed=0, image_size=(60, 107), duration=2.0)
+    config = OptimizeConfig()
+    given = working_inputs(demo, config, torch.device("cpu"))
+    scene = SceneTrajectories(**{k: torch.as_tensor(np.asarray(demo.truth[k]), dtype=torch.float32)
+                                 for k in SceneTrajectories.__dataclass_fields__})
+    rendered = render_scene(scene, given.intrinsics, config.sigma)
+    hand = float(diou_loss(rendered, given.targets)[0][:, 0].mean())
+
+    def perceptual(weights):
+        return float(initial_objective(scene, rendered, given.targets, given.contact, demo.fps, weights)["perceptual"])
+
+    assert LossWeights().initial_hand > LossWeights().hand
+    base = LossWeights(initial_hand=1.0)
+    assert perceptual(replace(base, initial_hand=4.0)) - perceptual(base) == pytest.approx(3.0 * hand, rel=1e-4)
+    assert perceptual(replace(base, hand=4.0)) == pytest.approx(perceptual(base), rel=1e-6)

@@ -8,6 +8,8 @@ is a first camera and first trajectories for the physics stage (:mod:`warpskill.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import torch
 
@@ -334,7 +336,7 @@ def initial_objective(
     below = (-low).clamp_min(0.0).square().mean() + (-scene.hand_pos[:, 2]).clamp_min(0.0).square().mean()
     support = support_height(scene.object_pos, scene.static_pos, scene.static_rot, scene.static_size)
     return {
-        "perceptual": perceptual_loss(rendered, targets, weights),
+        "perceptual": perceptual_loss(rendered, targets, replace(weights, hand=weights.initial_hand)),
         "contact distance": weights.contact_distance
         * (c * (tip_distance + weights.grasp_margin).clamp_min(0.0) ** 2).mean(),
         "smoothness": weights.smoothness

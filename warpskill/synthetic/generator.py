@@ -1,0 +1,153 @@
+"""The synthetic demonstration: a scripted scene simulated, ray cast into exact masks, then spoiled."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+
+from warpskill.contract.actions import ACTIONS, check_action
+from warpskill.contract.camera import Intrinsics
+from warpskill.contract.demonstration import Demonstration
+from warpskill.engine.primitives import scene_cuboids
+from warpskill.engine.raycast import raycast_masks
+from warpskill.engine.simulation import simulate
+from warpskill.synthetic.scripts import (
+    Script,
+    draw_variant,
+    make_script,
+    scripted_inputs,
+    static_rotations,
+)
+from warpskill.synthetic.spoil import (
+    NOISE_LEVELS,
+    Noise,
+    box_channels,
+    noisy_channels,
+    noisy_contact,
+    phase_contact,
+)
+
+INPUTS = ("masks", "boxes")
+"""What a synthetic demonstration's masks are: the true silhouettes spoiled (``"masks"``), or
+the ellipses inscribed in per-frame boxes of them, as the Something-Else reader makes them
+(``"boxes"``; contact from annotator-like phases, scenes with the real videos' situations)."""
+
+
+def make_demonstration(
+    action: str,
+    *,
+    seed: int = 0,
+    noise: str | Noise = "moderate",
+    image_size: tuple[int, int] = (240, 427),
+    fps: float = 12.0,
+    duration: float = 4.0,
+    input: str = "masks",
+) -> Demonstration:
+    """A synthetic demonstration of ``action`` with its ground truth in ``demo.truth``.
+
+    Args:
+        action: one of :data:`warpskill.contract.actions.ACTIONS`.
+        seed: scene randomness (sizes, placements, camera, noise).
+        noise: a name in :data:`NOISE_LEVELS` or a :class:`Noise`.
+        image_size: (H, W) of the masks [px].
+        fps: frame rate [1/s].
+        duration: video length [s].
+        input: one of :data:`INPUTS`. ``"boxes"``: each channel's mask is the ellipse
+            inscribed in the box of its true visible silhouette (box edges jittered by up to
+            ``noise.jitter`` px), rasterised by :func:`warpskill.data.box_annotations.box_masks`
+            as for Something-Else; the contact is an annotator's action phase (from the
+            grasp onset to the release; a pick-up's ends once the lift is done or the
+            object leaves the view, while the hand still holds it); and the scenes add
+            the real videos' situations (:data:`PICK_UP_ENDINGS`, a hand that enters
+            through the border, wide static boxes cut by the frame).
+    """
+    check_action(action)
+    if input not in INPUTS:
+        raise ValueError(f"input: expected one of {INPUTS}, got {input!r}")
+    noise = NOISE_LEVELS[noise] if isinstance(noise, str) else noise
+    rng = np.random.default_rng([seed, ACTIONS.index(action)])
+    boxes = input == "boxes"
+    variant_rng = np.random.default_rng([seed, ACTIONS.index(action), 1])
+    intrinsics = Intrinsics.default(*image_size)
+    for _ in range(50):
+        variant = draw_variant(action, seed, variant_rng) if boxes else None
+        script = make_script(action, rng, duration, variant)
+        truth = _simulate(script, fps, duration)
+        masks = _render(truth, intrinsics)
+        if _in_view(masks, partly=boxes):
+            break
+    else:  # pragma: no cover - the scripts are built to stay in view
+        raise RuntimeError(f"could not place a {action} scene in view")
+    truth["action"] = np.array(action)
+    truth["camera_K"] = intrinsics.K
+    truth["image_size"] = np.array(image_size)
+    if boxes:
+        contact = noisy_contact(phase_contact(script, truth, masks), replace(noise, contact_flips=0), rng)
+        hand, obj, static = box_channels(masks, noise, rng)
+    else:
+        contact = noisy_contact(truth["grasped"] > 0.5, noise, rng)
+        hand, obj, static = noisy_channels(masks, noise, rng)
+    return Demonstration.from_arrays(
+        hand, obj, contact, fps, static_mask=static, camera_K=intrinsics.K, action=action, truth=truth
+    )
+
+
+def _simulate(script: Script, fps: float, duration: float) -> dict[str, np.ndarray]:
+    """Run the engine on a script; returns the ground truth reconstruction fields."""
+    inputs, options = scripted_inputs(script, fps, duration)
+    out = simulate(inputs, **options)
+    num_frames = out.hand_pos.shape[1]
+    K = len(script.static_pos)
+    n = lambda x: x[0].detach().numpy()  # noqa: E731
+    return {
+        "fps": np.array(fps),
+        "t": np.arange(num_frames) / fps,
+        "hand_pos": n(out.hand_pos),
+        "hand_rot": n(out.hand_rot),
+        "grasp": n(out.grasp),
+        "grasped": n(out.grasped),
+        "object_pos": n(out.object_pos),
+        "object_rot": n(out.object_rot),
+        "object_size": script.object_size,
+        "static_pos": script.static_pos.reshape(K, 3),
+        "static_rot": static_rotations(script),
+        "static_size": script.static_size.reshape(K, 3),
+        "camera_elevation": np.array(script.camera_elevation),
+        "camera_height": np.array(script.camera_height),
+        "loss": np.array(0.0),
+    }
+
+
+def _render(truth: dict[str, np.ndarray], intrinsics: Intrinsics) -> np.ndarray:
+    """Exact visible masks (N, 2 + K, H, W) of the true scene."""
+    cuboid_pos, cuboid_rot, cuboid_size = scene_cuboids(SimpleNamespace(**truth))
+    return raycast_masks(
+        truth["hand_pos"],
+        truth["hand_rot"],
+        cuboid_pos,
+        cuboid_rot,
+        cuboid_size,
+        float(truth["camera_height"]),
+        float(truth["camera_elevation"]),
+        intrinsics,
+    )
+
+
+def _in_view(masks: np.ndarray, margin: int = 2, *, partly: bool = False) -> bool:
+    """Whether every cuboid stays inside the image (not touching its border) and is seen.
+
+    ``partly``: the object need only be inside the image until it is grasped (it may then
+    leave the view with the hand), and static boxes may be cut by the frame.
+    """
+    cuboids = masks[:, 1:]
+    border = np.zeros(masks.shape[-2:], bool)
+    border[:margin], border[-margin:], border[:, :margin], border[:, -margin:] = True, True, True, True
+    if partly:
+        cuboids = cuboids[: max(1, len(cuboids) // 3), :1]
+    touches = (cuboids & border).any()
+    seen = cuboids.reshape(*cuboids.shape[:2], -1).any(-1)
+    return not touches and seen[:, 0].mean() > 0.8 and masks[:, 0].any()
+
+
