@@ -743,7 +743,7 @@ def label_image_folders(draw):
             mapping = draw(st.sampled_from((
                 {"hand": 1}, {"hand": 1, "object": 2, "arm": 3}, {"hand": (1, 0, 0), "object": (0, 1, 0)},
                 {"hand": 1, "object": 2}, {"hand": 1, "object": 2, "static": [3, 4, 5]}, {"hand": 1, "object": 2, "static": 3},
-                # Not generated until readers.py checks index values: {"hand": [1], "object": 2} (see the xfail below).
+                {"hand": [1], "object": 2}, {"hand": None, "object": 2},
             )))
             names |= {""}
     contact = draw(st.sampled_from((None, np.ones(n), np.ones(n + 2))))
@@ -1044,7 +1044,6 @@ def test_detections_csv_errors_are_demonstration_errors(tmp_path, content, match
         read_detections(path, 3)
 
 
-@pytest.mark.xfail(raises=TypeError, strict=False, reason="readers._roles passes a list / None index to int(): reported")
 @pytest.mark.parametrize("value", [[1], (1, 2), None])
 def test_label_mapping_with_a_non_integer_index_is_a_demonstration_error(tmp_path, value):
     labels = np.zeros((1, 4, 4), np.uint8)

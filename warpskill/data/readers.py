@@ -328,7 +328,9 @@ def _roles(mapping: dict | None, colour: bool, present: np.ndarray, folder) -> d
     for role, value in mapping.items():
         values = value if role == "static" and isinstance(value, list) else [value]
         for item in values:
-            if colour != (np.ndim(item) == 1 and len(item) == 3):
+            is_colour = np.ndim(item) == 1 and len(item) == 3
+            is_index = isinstance(item, (int, np.integer)) and not isinstance(item, bool)
+            if (colour and not is_colour) or (not colour and not is_index):
                 kind = "(R, G, B) colours" if colour else "integer indices"
                 raise DemonstrationError(f"{folder}: the images need {kind} in the mapping, got {role}: {item!r}")
         roles[role] = [_code(item, colour) for item in values]
