@@ -8,8 +8,6 @@ is a first camera and first trajectories for the physics stage (:mod:`warpskill.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import torch
 
@@ -82,17 +80,16 @@ def _band_width(pixels: np.ndarray) -> float:
     return float(np.sqrt(12.0 * max(np.linalg.eigvalsh(np.cov(pixels.T))[0], 1.0 / 12.0)))
 
 
-def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, fx: float, frames: np.ndarray | None = None) -> float | None:
+def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, fx: float) -> float | None:
     """Median camera depth [m] of the hand tip, from the mask's width near the tip.
 
     The hand is a cylinder of known radius R, so a stretch of mask w [px] wide lies at
     depth 2 R fx / w. The arm widens towards the camera: only the pixels within a few
     widths of the tip (the hand pixel nearest ``targets_of`` (N, 2), the object's centroid)
-    are measured. ``frames`` (N,) bool: the frames to measure (default: all).
+    are measured.
     """
     depths = []
-    visible = geom.visible if frames is None else geom.visible & frames
-    for k in np.flatnonzero(visible):
+    for k in np.flatnonzero(geom.visible):
         pixels = geom.pixels(k)
         if len(pixels) < 6:
             continue
@@ -145,17 +142,10 @@ def initial_guess(
     object_geom = _MaskGeometry(targets[:, 1])
 
     object_centroid = _fill_missing(object_geom.centroid, object_geom.visible)
-    # The scene's depth: the hand tip's, where it touches the object (in all frames if
-    # there is no contact); the object's bottom edge at that depth, before the hand first
-    # touches it (it stands on the ground then), gives the camera height.
-    touching = np.asarray(contact, bool)
-    depth = _hand_depth(hand_geom, object_centroid, K[0, 0], touching) if touching.any() else None
-    if depth is None:
-        depth = _hand_depth(hand_geom, object_centroid, K[0, 0])
-    before = object_geom.visible & (np.arange(N) < (np.flatnonzero(touching)[0] if touching.any() else N))
+    depth = _hand_depth(hand_geom, object_centroid, K[0, 0])
     h0 = INITIAL_CAMERA_HEIGHT
     if depth is not None:
-        bottom_row = np.median(object_geom.box[before, 3]) if before.any() else np.nanmedian(object_geom.box[:, 3])
+        bottom_row = np.nanmedian(object_geom.box[:, 3])
         ray = np.array([0.0, (bottom_row - K[1, 2]) / K[1, 1], 1.0])
         h0 = float(np.clip(depth * (ray @ R_wc.T) @ np.array([0.0, 0.0, -1.0]), 0.15, 1.5))
     centre = np.array([0.0, 0.0, h0])
@@ -336,7 +326,7 @@ def initial_objective(
     below = (-low).clamp_min(0.0).square().mean() + (-scene.hand_pos[:, 2]).clamp_min(0.0).square().mean()
     support = support_height(scene.object_pos, scene.static_pos, scene.static_rot, scene.static_size)
     return {
-        "perceptual": perceptual_loss(rendered, targets, replace(weights, hand=weights.initial_hand)),
+        "perceptual": perceptual_loss(rendered, targets, weights),
         "contact distance": weights.contact_distance
         * (c * (tip_distance + weights.grasp_margin).clamp_min(0.0) ** 2).mean(),
         "smoothness": weights.smoothness

@@ -14,7 +14,6 @@ class LossWeights:
     """
 
     hand: float = 1.0  #: perceptual, hand
-    initial_hand: float = 10.0  #: stage (a): perceptual, hand (its known width is what sets the scene's scale)
     object: float = 10.0  #: perceptual, manipulated object
     static: float = 2.0  #: perceptual, each static object
     hand_velocity: float = 1e-3  #: |v_h|^2 + |w_h|^2 per frame
