@@ -7,7 +7,7 @@ import importlib.metadata
 import math
 from pathlib import Path
 
-__all__ = ["add_optimise_options", "add_placement_options", "installed", "placement", "reconstruct", "report", "save_plan",
+__all__ = ["add_optimise_options", "add_placement_options", "installed", "placement", "robot_steps_available", "reconstruct", "report", "save_plan",
            "save_scene"]
 
 
@@ -47,8 +47,7 @@ def reconstruct(demos, folders: list[Path], checkpoint: Path, args, *, init_only
                  pictures: bool = True):
     """Optimise ``demos`` together (resuming ``checkpoint``); write each npz and pictures into its folder."""
     from warpskill.engine import resolve_device
-    from warpskill.optimizer import optimize_many
-    from warpskill.optimizer import parse_known
+    from warpskill.optimizer import optimize_many, parse_known
     from warpskill.visual import save_pictures
 
     resolve_device(args.device)
@@ -116,7 +115,20 @@ def save_scene(recon, demo, out: Path, plan=None, replay=None, *, quiet: bool = 
         print(f"scene: {path} (open with: rerun {path})")
 
 
+ROBOT_PACKAGES = ("placo", "mujoco", "example-robot-data")
+"""The distributions the robot steps (retarget, replay) need: the ``robot`` extra."""
+
+
+def robot_steps_available() -> bool:
+    """Whether :data:`ROBOT_PACKAGES` are installed; if not, say in one line how to get them."""
+    missing = [name for name in ROBOT_PACKAGES if not installed(name)]
+    if missing:
+        print(f"robot steps skipped ({', '.join(missing)} not installed): pip install 'warpskill[robot]'")
+    return not missing
+
+
 def installed(distribution: str) -> bool:
+    """Whether the Python distribution ``distribution`` is installed."""
     try:
         importlib.metadata.distribution(distribution)
     except importlib.metadata.PackageNotFoundError:

@@ -7,10 +7,10 @@ from pathlib import Path
 from warpskill.cli.common import (
     add_optimise_options,
     add_placement_options,
-    installed,
     placement,
     reconstruct,
     report,
+    robot_steps_available,
     save_plan,
     save_scene,
 )
@@ -62,9 +62,7 @@ def _demo(args) -> int:
     [recon] = reconstruct([demo], [args.out], args.out / "checkpoint.pt", args)
     if args.no_robot:
         return 0
-    missing = [name for name in ("placo", "mujoco", "example-robot-data") if not installed(name)]
-    if missing:
-        print(f"robot steps skipped ({', '.join(missing)} not installed): pip install 'warpskill[robot]'")
+    if not robot_steps_available():
         return 0
     from warpskill.robot import PlanError, record, replay, retarget
 

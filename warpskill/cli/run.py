@@ -21,10 +21,10 @@ from pathlib import Path
 from warpskill.cli.common import (
     add_optimise_options,
     add_placement_options,
-    installed,
     placement,
     reconstruct,
     report,
+    robot_steps_available,
     save_plan,
     save_scene,
 )
@@ -32,7 +32,6 @@ from warpskill.cli.prepare import add_recording_options, prepare
 
 __all__ = ["register"]
 
-ROBOT_PACKAGES = ("placo", "mujoco", "example-robot-data")
 
 
 def register(commands) -> None:
@@ -78,9 +77,7 @@ def _run(args) -> int:
     if args.no_robot:
         _scene(recon, demo, out, redo)
         return 0
-    missing = [name for name in ROBOT_PACKAGES if not installed(name)]
-    if missing:
-        print(f"robot steps skipped ({', '.join(missing)} not installed): pip install 'warpskill[robot]'")
+    if not robot_steps_available():
         _scene(recon, demo, out, redo)
         return 0
     from warpskill.robot import (
