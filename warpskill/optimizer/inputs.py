@@ -24,6 +24,8 @@ class WorkingInputs:
         contact_signal: (N,) bool, the majority-filtered contact.
         contact: (N,) the same as floats on the device.
         object_visible: (N,) 1 where the object's mask is not empty.
+        hand_boxed: the hand's masks are drawn from boxes (:func:`drawn_from_boxes`): their
+            width says nothing of the hand's depth, and only their boxes are compared.
     """
 
     intrinsics: object
@@ -32,6 +34,7 @@ class WorkingInputs:
     contact_signal: np.ndarray
     contact: torch.Tensor
     object_visible: torch.Tensor
+    hand_boxed: bool
 
 
 def working_inputs(demo: Demonstration, config: OptimizeConfig, device: torch.device) -> WorkingInputs:
@@ -39,14 +42,42 @@ def working_inputs(demo: Demonstration, config: OptimizeConfig, device: torch.de
     h, w = demo.intrinsics.scaled(config.image_scale).image_size
     masks = torch.as_tensor(demo.mask_stack(h, w), device=device)
     contact_signal = majority_filter(demo.contact)
+    hand_boxed = drawn_from_boxes(np.asarray(demo.hand_mask, dtype=bool))
+    boxed = torch.zeros(masks.shape[1], dtype=torch.bool, device=device)
+    boxed[0] = hand_boxed
     return WorkingInputs(
         intrinsics=demo.intrinsics.resized(h, w),
         masks=masks,
-        targets=MaskTargets(masks),
+        targets=MaskTargets(masks, boxed),
         contact_signal=contact_signal,
         contact=torch.as_tensor(contact_signal, dtype=torch.float32, device=device),
         object_visible=(masks[:, 1].flatten(1).amax(1) > 0.5).float(),
+        hand_boxed=hand_boxed,
     )
+
+
+def drawn_from_boxes(masks: np.ndarray, *, tolerance: float = 0.05, min_share: float = 0.8) -> bool:
+    """Whether masks (N, H, W) are shapes drawn inside boxes (box annotations), not segmentations.
+
+    A frame's mask counts as drawn from a box when it differs from the ellipse inscribed in
+    its bounds, or from the bounds themselves, in at most ``tolerance`` of their union plus
+    a quarter of the box's perimeter [px] (rasterisation at the edge); the masks are, when
+    at least ``min_share`` of the non-empty frames do.
+    """
+    H, W = masks.shape[-2:]
+    rows, cols = np.arange(H)[:, None] + 0.5, np.arange(W)[None] + 0.5
+    matched = total = 0
+    for mask, box in zip(masks, _boxes(masks)):
+        if np.isnan(box[0]):
+            continue
+        total += 1
+        u0, v0, u1, v1 = box + np.array([0, 0, 1, 1])
+        rectangle = np.zeros_like(mask)
+        rectangle[int(v0) : int(v1), int(u0) : int(u1)] = True
+        ellipse = ((cols - 0.5 * (u0 + u1)) / (0.5 * (u1 - u0))) ** 2 + ((rows - 0.5 * (v0 + v1)) / (0.5 * (v1 - v0))) ** 2 <= 1
+        allowed = 0.5 * ((u1 - u0) + (v1 - v0))
+        matched += any((shape ^ mask).sum() <= tolerance * (shape | mask).sum() + allowed for shape in (ellipse, rectangle))
+    return bool(total > 0 and matched >= min_share * total)
 
 
 def _boxes(masks: np.ndarray) -> np.ndarray:
@@ -105,4 +136,39 @@ def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: in
                 return out
             gone = True
     out[end + 1 :] = True
+    return out
+
+
+def rests_on_static(masks: np.ndarray, contact: np.ndarray, *, min_frames: int = 2) -> np.ndarray:
+    """(N,) bool: frames after the release in which the object may rest on the first static box.
+
+    The paper's Fig. 1: an object released over a static box is either on its top or behind
+    it on the ground, and one view cannot tell. It may be on top when, in every frame from
+    the release to the video's end, the object's box overlaps the static's box across at
+    least half of the narrower one and its bottom row lies inside the static's box (below
+    its top edge by a tenth of its height, above its bottom edge): behind the box, the
+    object would be cut at the static's top edge; in front of it, its bottom would be lower
+    than the static's. Whether it is really on top is for the physics to decide (see
+    :func:`warpskill.optimize`); when the evidence is absent, nothing is returned.
+
+    Args:
+        masks: (N, 2 + K, h, w) masks in [0, 1]: hand, object, statics.
+        contact: (N,) bool.
+        min_frames: fewer frames after the release than this are ignored.
+    """
+    N = len(contact)
+    out = np.zeros(N, dtype=bool)
+    on = np.flatnonzero(contact)
+    if masks.shape[1] < 3 or len(on) == 0 or on[-1] > N - 1 - min_frames:
+        return out
+    after = np.arange(on[-1] + 1, N)
+    obj, static = _boxes(masks[after, 1] > 0.5), _boxes(masks[after, 2] > 0.5)
+    if np.isnan(obj).any() or np.isnan(static).any():
+        return out
+    overlap = np.minimum(obj[:, 2], static[:, 2]) - np.maximum(obj[:, 0], static[:, 0])
+    narrower = np.minimum(obj[:, 2] - obj[:, 0], static[:, 2] - static[:, 0])
+    height = static[:, 3] - static[:, 1]
+    on_top = ((overlap >= 0.5 * narrower) & (obj[:, 3] > static[:, 1] + 0.1 * height) & (obj[:, 3] < static[:, 3]))
+    if on_top.all():
+        out[after] = True
     return out

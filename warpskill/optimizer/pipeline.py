@@ -25,7 +25,7 @@ from warpskill.engine.distances import box_signed_distance
 from warpskill.optimizer.batching import Backend, render_many, simulate_many
 from warpskill.optimizer.checkpoint import Checkpoint, fingerprint
 from warpskill.optimizer.config import OptimizeConfig
-from warpskill.optimizer.inputs import held_after_contact, working_inputs
+from warpskill.optimizer.inputs import held_after_contact, rests_on_static, working_inputs
 from warpskill.optimizer.known import check_known
 from warpskill.optimizer.loop import minimise
 from warpskill.optimizer.scene import SceneTrajectories, perceptual_loss
@@ -136,18 +136,31 @@ def optimize_many(
     store = Checkpoint(checkpoint, run_id)
     inputs = [working_inputs(demo, config, device) for demo in demos]
     weights, sigma = config.weights, config.sigma
+    # A known length fixes the scale: the prior on the camera's height then has nothing to decide.
+    scene_weights = [replace(weights, camera_height=0.0) if k else weights for k in knowns]
     # Frames after the contact signal's end where the object may still be held: stage (a)
     # leaves them to the masks, stage (b) simulates both endings and the video decides.
     held = [held_after_contact(given.masks.cpu().numpy(), given.contact_signal) for given in inputs]
     uncertain = [torch.as_tensor(h, dtype=torch.float32, device=device) if h.any() else None for h in held]
 
-    # Stage (a): every demonstration from each object-depth hypothesis; the lower loss wins.
-    owners, candidates = [], []
+    # Frames after the release where the object may stand on the static box (or behind it).
+    # (At the masks' own resolution: a few pixels tell the object on top from the object behind.)
+    resting = [rests_on_static(demo.mask_stack(*demo.image_size), given.contact_signal)
+               for demo, given in zip(demos, inputs)]
+
+    # Stage (a): every demonstration from each object-depth hypothesis; the lower loss wins,
+    # except that a placement on the static box goes on to the physics beside the winner.
+    owners, candidates, hypotheses, supported = [], [], [], []
     for i, (demo, given) in enumerate(zip(demos, inputs)):
         for hypothesis in OBJECT_DEPTH_HYPOTHESES:
+            on_static = hypothesis == "on the static"
+            if on_static and not resting[i].any():
+                continue
             guess = initial_guess(given.masks.cpu().numpy(), given.contact_signal, given.intrinsics, demo.num_static,
-                                  object_depth=hypothesis)
+                                  object_depth=hypothesis, resting=resting[i], hand_width=not given.hand_boxed)
             owners.append(i)
+            hypotheses.append(hypothesis)
+            supported.append(torch.as_tensor(resting[i], dtype=torch.float32, device=device) if on_static else None)
             candidates.append(InitialParameters(guess, knowns[i]).to(device))
 
     def stage_a(live: list[int]) -> list[dict[str, torch.Tensor]]:
@@ -155,18 +168,21 @@ def optimize_many(
         rendered = render_many(scenes, [inputs[owners[j]].intrinsics for j in live], sigma, backend.render)
         return [
             initial_objective(scene, masks, inputs[owners[j]].targets, inputs[owners[j]].contact,
-                              demos[owners[j]].fps, weights, uncertain[owners[j]])
+                              demos[owners[j]].fps, scene_weights[owners[j]], uncertain[owners[j]],
+                              supported[j])
             for j, scene, masks in zip(live, scenes, rendered)
         ]
 
     losses = minimise(candidates, stage_a, iterations=config.init_iterations,
                        learning_rate=config.init_learning_rate, config=config, progress=progress,
                        label="initialisation", store=store)
-    fits, stage_a_losses = [], []
+    fits, stage_a_losses, placements = [], [], []
     for i in range(len(demos)):
-        j = min((j for j in range(len(owners)) if owners[j] == i), key=lambda j: losses[j])
+        j = min((j for j in range(len(owners)) if owners[j] == i and supported[j] is None), key=lambda j: losses[j])
         fits.append(candidates[j].scene().detached())
         stage_a_losses.append(losses[j])
+        placements.append([(candidates[j].scene().detached(), supported[j]) for j in range(len(owners))
+                           if owners[j] == i and supported[j] is not None])
     if init_only:
         reconstructions = []
         for demo, given, fit, loss in zip(demos, inputs, fits, stage_a_losses):
@@ -175,18 +191,22 @@ def optimize_many(
             reconstructions.append(_reconstruction(demo, fit, grasp, given.contact * (distance < 0), loss))
         return reconstructions
 
-    # Stage (b): the physics, once per contact hypothesis: the signal as given and, where the
-    # object may still be held after it ends, the signal extended to the video's end; the
-    # ending whose simulation matches the masks better wins.
-    physics_owners, contacts, signals = [], [], []
+    # Stage (b): the physics, once per contact hypothesis (the signal as given and, where the
+    # object may still be held after it ends, the signal extended to the video's end) and per
+    # placement (stage (a)'s winner and, where the object may rest on the static box, that
+    # placement); the one whose simulation matches the masks best wins.
+    physics_owners, contacts, signals, starts, on_static = [], [], [], [], []
     for i, given in enumerate(inputs):
         variants = [given.contact_signal] + ([given.contact_signal | held[i]] if held[i].any() else [])
-        for signal in variants:
-            physics_owners.append(i)
-            signals.append(signal)
-            contacts.append(torch.as_tensor(signal, dtype=torch.float32, device=device))
-    scenes = [make_physical_scene(fits[i], signal, demos[i].fps, config, knowns[i]).to(device)
-              for i, signal in zip(physics_owners, signals)]
+        for start, support in [(fits[i], None)] + placements[i]:
+            for signal in variants:
+                physics_owners.append(i)
+                signals.append(signal)
+                starts.append(start)
+                on_static.append(support)
+                contacts.append(torch.as_tensor(signal, dtype=torch.float32, device=device))
+    scenes = [make_physical_scene(start, signal, demos[physics_owners[b]].fps, config, knowns[physics_owners[b]])
+              .to(device) for b, (start, signal) in enumerate(zip(starts, signals))]
 
     def simulate_scenes(live: list[int]) -> list[PhysicalRollout]:
         rollouts = simulate_many([scenes[b].simulation_inputs() for b in live],
@@ -199,7 +219,8 @@ def optimize_many(
                                sigma, backend.render)
         return [
             physical_objective(result, masks, inputs[physics_owners[b]].targets, contacts[b],
-                               inputs[physics_owners[b]].object_visible, weights)
+                               inputs[physics_owners[b]].object_visible, scene_weights[physics_owners[b]],
+                               on_static[b])
             for b, result, masks in zip(live, results, rendered)
         ]
 

@@ -10,7 +10,7 @@ from warpskill.contract.camera import Intrinsics
 from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.rendering import render_silhouettes
 from warpskill.engine.rotations import yaw_rotation
-from warpskill.optimizer.losses import MaskTargets, diou_loss
+from warpskill.optimizer.losses import MaskTargets, box_loss, diou_loss
 from warpskill.optimizer.weights import LossWeights
 
 
@@ -57,8 +57,11 @@ def static_poses(xy: torch.Tensor, yaw: torch.Tensor, size: torch.Tensor) -> tup
 
 
 def perceptual_loss(rendered: torch.Tensor, targets: MaskTargets, weights: LossWeights) -> torch.Tensor:
-    """Weighted mean dIoU over frames: hand, object, then static channels (N, C, h, w)."""
+    """Weighted mean dIoU over frames: hand, object, then static channels (N, C, h, w); the
+    channels drawn from boxes (``targets.boxed``) compare boxes (:func:`box_loss`)."""
     per_mask, _ = diou_loss(rendered, targets)
+    if targets.boxed is not None and bool(targets.boxed.any()):
+        per_mask = torch.where(targets.boxed.to(per_mask.device), box_loss(rendered, targets), per_mask)
     channel_weights = torch.tensor(
         [weights.hand, weights.object] + [weights.static] * (rendered.shape[1] - 2),
         dtype=rendered.dtype,
@@ -81,3 +84,21 @@ def render_scene(scene: SceneTrajectories, intrinsics: Intrinsics, sigma: float)
         intrinsics,
         sigma=sigma,
     )
+
+
+def camera_height_prior(scene: SceneTrajectories, weights: LossWeights) -> torch.Tensor:
+    """Weak prior on the scene's size: ``log(camera height / typical height)^2``, weighted.
+
+    Masks fix the scale through one cue, the apparent width of the fixed-size hand; box
+    annotations carry none, and neither do the hand's frames far from the camera. This
+    term decides where the masks leave the scale open, and yields where they fix it.
+    """
+    return weights.camera_height * torch.log(scene.camera_height / weights.typical_camera_height).square()
+
+
+def off_static_penalty(scene: SceneTrajectories, supported: torch.Tensor, weights: LossWeights) -> torch.Tensor:
+    """How far the object's centre lies outside the first static box's footprint in the
+    ``supported`` (N,) frames (squared [m^2], weighted): the placement "on the static"."""
+    local = (scene.object_pos - scene.static_pos[0]) @ scene.static_rot[0]
+    outside = (local[:, :2].abs() - 0.5 * scene.static_size[0, :2]).clamp_min(0.0).square().sum(-1)
+    return weights.penetration * (supported.to(outside) * outside).mean()

@@ -25,6 +25,8 @@ from warpskill.optimizer.known import measured, pin_sizes
 from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.scene import (
     SceneTrajectories,
+    camera_height_prior,
+    off_static_penalty,
     perceptual_loss,
     positive,
     positive_inverse,
@@ -100,7 +102,9 @@ def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, fx: float) -> float
     return float(np.median(depths)) if depths else None
 
 
-OBJECT_DEPTH_HYPOTHESES = ("resting depth", "on the ground")
+OBJECT_DEPTH_HYPOTHESES = ("resting depth", "on the ground", "on the static")
+"""Where the object is after it was first seen (see :func:`initial_guess`); the last applies
+only to frames that :func:`warpskill.optimizer.inputs.rests_on_static` finds."""
 
 
 def initial_guess(
@@ -110,6 +114,8 @@ def initial_guess(
     num_static: int,
     *,
     object_depth: str = "resting depth",
+    resting: np.ndarray | None = None,
+    hand_width: bool = True,
 ) -> SceneTrajectories:
     """A rough scene read off the masks' geometry, before any optimisation.
 
@@ -123,7 +129,8 @@ def initial_guess(
     Where the object is after it was first seen is ambiguous from one frame's mask (the
     paper's Fig. 1: on top of a box, or behind it on the ground), so ``object_depth``
     names the hypothesis: it keeps its ``"resting depth"``, or stands ``"on the ground"``
-    below its mask's bottom edge in every frame.
+    below its mask's bottom edge in every frame, or, in the ``resting`` frames after the
+    release, stands ``"on the static"`` box's top, the box reaching back (or forward) under it.
 
     Args:
         targets: (N, 2 + K, h, w) masks at the working resolution.
@@ -131,9 +138,16 @@ def initial_guess(
         intrinsics: working-resolution intrinsics.
         num_static: K.
         object_depth: one of :data:`OBJECT_DEPTH_HYPOTHESES`.
+        resting: (N,) bool, the frames where the object may rest on the first static box
+            (needed by ``"on the static"``).
+        hand_width: whether the hand mask's width measures its depth (not so for masks
+            drawn from boxes); without it the camera starts at its typical height.
     """
     if object_depth not in OBJECT_DEPTH_HYPOTHESES:
         raise ValueError(f"object_depth must be one of {OBJECT_DEPTH_HYPOTHESES}, not {object_depth!r}")
+    on_static = object_depth == "on the static"
+    if on_static and (num_static == 0 or resting is None or not np.any(resting)):
+        raise ValueError("object_depth 'on the static' needs a static box and frames where the object rests on it")
     N = targets.shape[0]
     K = intrinsics.K
     e0 = INITIAL_CAMERA_ELEVATION
@@ -142,7 +156,7 @@ def initial_guess(
     object_geom = _MaskGeometry(targets[:, 1])
 
     object_centroid = _fill_missing(object_geom.centroid, object_geom.visible)
-    depth = _hand_depth(hand_geom, object_centroid, K[0, 0])
+    depth = _hand_depth(hand_geom, object_centroid, K[0, 0]) if hand_width else None
     h0 = INITIAL_CAMERA_HEIGHT
     if depth is not None:
         bottom_row = np.nanmedian(object_geom.box[:, 3])
@@ -187,6 +201,9 @@ def initial_guess(
         pos, size, visible = cuboid_from_masks(_MaskGeometry(targets[:, 2 + j]), True)
         static_pos.append(pos[np.flatnonzero(visible)[0]])
         static_size.append(size)
+    if on_static:
+        object_pos = _placed_on_static(object_pos, object_size, object_geom, np.asarray(contact, bool), resting, static_pos[0], static_size[0],
+                                       centre, K, R_wc)
 
     hand_pos = np.zeros((N, 3))
     hand_axis = np.zeros((N, 3))
@@ -218,6 +235,41 @@ def initial_guess(
         camera_height=torch.tensor(h0),
         camera_elevation=torch.tensor(e0),
     )
+
+
+def _placed_on_static(
+    object_pos: np.ndarray, object_size: np.ndarray, geom: _MaskGeometry, contact: np.ndarray, resting: np.ndarray,
+    static_pos: np.ndarray, static_size: np.ndarray, camera: np.ndarray, K: np.ndarray, R_wc: np.ndarray,
+) -> np.ndarray:
+    """Object centres (N, 3) that stand on the static box's top in the ``resting`` frames,
+    below the mask's bottom edge, and are carried there during the contact (their camera
+    depth moving from where the object started to where it rests); the static box
+    (``static_pos``, ``static_size``, changed in place) reaches under the object."""
+    offset = np.array([0.0, 0.5 * object_size[1], 0.5 * object_size[2]])
+
+    def bottom_ray(k: int) -> np.ndarray:
+        u0, _, u1, v1 = geom.box[k]
+        return _rays(np.array([[0.5 * (u0 + u1), v1]]), K, R_wc)[0]
+
+    pos = object_pos.copy()
+    top = static_size[2]
+    for k in np.flatnonzero(resting & geom.visible):
+        ray = bottom_ray(k)
+        t = (top - camera[2]) / ray[2] if ray[2] < -1e-3 else 1.0
+        pos[k] = camera + min(t, 3.0) * ray + offset
+    rest = pos[resting & geom.visible].mean(0) if (resting & geom.visible).any() else pos[resting].mean(0)
+    pos[resting & ~geom.visible] = rest
+    held = np.flatnonzero(contact)
+    if len(held) > 1:
+        depth = lambda p: float((p - camera) @ R_wc[:, 2])  # noqa: E731
+        start, end = depth(pos[held[0]] - offset), depth(rest - offset)
+        for k in held[geom.visible[held]]:
+            share = (k - held[0]) / (held[-1] + 1 - held[0])
+            pos[k] = camera + ((1 - share) * start + share * end) * bottom_ray(k) + offset
+    lo = np.minimum(static_pos[:2] - 0.5 * static_size[:2], rest[:2] - 0.5 * object_size[:2])
+    hi = np.maximum(static_pos[:2] + 0.5 * static_size[:2], rest[:2] + 0.5 * object_size[:2])
+    static_pos[:2], static_size[:2] = 0.5 * (lo + hi), hi - lo
+    return pos
 
 
 class InitialParameters(torch.nn.Module):
@@ -297,6 +349,7 @@ def initial_objective(
     fps: float,
     weights: LossWeights,
     uncertain: torch.Tensor | None = None,
+    supported: torch.Tensor | None = None,
 ) -> dict[str, torch.Tensor]:
     """Stage (a) loss terms: perceptual, contact distance, smoothness and resting priors.
 
@@ -309,6 +362,8 @@ def initial_objective(
         weights: loss weights.
         uncertain: (N,) 1 in frames whose contact is in doubt (the object may still be held
             after the signal ends): neither the contact nor the resting priors apply there.
+        supported: (N,) 1 in frames where the object stands on the first static box (the
+            hypothesis "on the static"): its centre is asked to lie over the box's footprint.
     """
     tip_distance = box_signed_distance(scene.hand_pos, scene.object_pos, scene.object_rot, scene.object_size)
     c = contact.to(tip_distance.dtype)
@@ -325,7 +380,7 @@ def initial_objective(
     low = lowest_corner_height(scene.object_pos, scene.object_rot, scene.object_size)
     below = (-low).clamp_min(0.0).square().mean() + (-scene.hand_pos[:, 2]).clamp_min(0.0).square().mean()
     support = support_height(scene.object_pos, scene.static_pos, scene.static_rot, scene.static_size)
-    return {
+    terms = {
         "perceptual": perceptual_loss(rendered, targets, weights),
         "contact distance": weights.contact_distance
         * (c * (tip_distance + weights.grasp_margin).clamp_min(0.0) ** 2).mean(),
@@ -341,4 +396,9 @@ def initial_objective(
         + weights.penetration * (free * (low - support).square()).mean(),
         # ... and nothing goes through the ground.
         "penetration": weights.penetration * below,
+
+        "camera height": camera_height_prior(scene, weights),
     }
+    if supported is not None:
+        terms["on the static"] = off_static_penalty(scene, supported, weights)
+    return terms

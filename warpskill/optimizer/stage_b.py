@@ -25,6 +25,8 @@ from warpskill.optimizer.known import pin_sizes
 from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.scene import (
     SceneTrajectories,
+    camera_height_prior,
+    off_static_penalty,
     perceptual_loss,
     positive,
     positive_inverse,
@@ -270,8 +272,10 @@ def physical_objective(
     contact: torch.Tensor,
     object_visible: torch.Tensor,
     weights: LossWeights,
+    supported: torch.Tensor | None = None,
 ) -> dict[str, torch.Tensor]:
-    """Stage (b) loss terms: perceptual, velocity regularisation, contact, stability.
+    """Stage (b) loss terms: perceptual, velocity regularisation, contact, stability, and the
+    placement "on the static" where it is the hypothesis.
 
     Args:
         result: the simulated scene.
@@ -280,6 +284,8 @@ def physical_objective(
         contact: (N,) contact signal in {0, 1}.
         object_visible: (N,) 1 where the object's mask is not empty.
         weights: loss weights.
+        supported: (N,) 1 in frames where the object is to stand on the first static box
+            (the placement whose physics is being tried); None: no such placement.
 
     Returns:
         Named weighted terms; the loss is their sum.
@@ -287,7 +293,7 @@ def physical_objective(
     rollout = result.rollout
     object_speed = rollout.object_vel.square().sum(-1) + rollout.object_ang_vel.square().sum(-1)
     margin = weights.grasp_margin
-    return {
+    terms = {
         "perceptual": perceptual_loss(rendered, targets, weights),
         "hand velocity": weights.hand_velocity * result.hand_speed.mean(),
         "hidden object velocity": weights.invisible_object_velocity * ((1 - object_visible) * object_speed).mean(),
@@ -299,4 +305,9 @@ def physical_objective(
             + ((1 - contact) * (rollout.grasp + margin).clamp_min(0.0) ** 2).mean()
         ),
         "stability": weights.stability * result.still_velocity.mean(),
+
+        "camera height": camera_height_prior(result.scene, weights),
     }
+    if supported is not None:
+        terms["on the static"] = off_static_penalty(result.scene, supported, weights)
+    return terms

@@ -25,3 +25,5 @@ class LossWeights:
     smoothness: float = 1e-4  #: stage (a): squared accelerations
     resting: float = 0.1  #: stage (a): object speed without contact
     penetration: float = 1e3  #: stage (a): below-ground depth
+    camera_height: float = 0.5  #: log(camera height / typical_camera_height)^2, both stages (off with known lengths)
+    typical_camera_height: float = 0.45  #: [m] a table filmed by a person standing or sitting at it

@@ -1,0 +1,97 @@
+"""Masks drawn from box annotations: recognised, compared by their boxes, and the scale left to a weak prior."""
+
+import numpy as np
+import pytest
+import torch
+
+from warpskill.data.box_annotations import box_masks
+from warpskill.optimizer.inputs import drawn_from_boxes
+from warpskill.optimizer.losses import MaskTargets, box_loss, diou_loss
+from warpskill.optimizer.scene import camera_height_prior
+from warpskill.optimizer.stage_a import initial_guess
+from warpskill.optimizer.weights import LossWeights
+from warpskill.synthetic import make_demonstration
+
+H, W = 48, 64
+
+
+def _band(width: float, H: int = H, W: int = W) -> np.ndarray:
+    """(H, W) float: a diagonal band ``width`` px wide from the top-left to the bottom-right corner."""
+    rows, cols = np.mgrid[0:H, 0:W] + 0.5
+    distance = np.abs(rows * W - cols * H) / np.hypot(H, W)
+    return (distance < width / 2).astype(np.float64)
+
+
+@pytest.mark.parametrize("shape", ["ellipse", "rectangle"])
+def test_masks_drawn_from_boxes_are_recognised(shape):
+    rng = np.random.default_rng(0)
+    x0, y0 = rng.uniform(0, 30, 10), rng.uniform(0, 20, 10)
+    boxes = np.stack([x0, y0, x0 + rng.uniform(5, 30, 10), y0 + rng.uniform(5, 25, 10)], 1)
+    boxes[3] = np.nan  # an empty frame does not count
+    assert drawn_from_boxes(box_masks(boxes, (H, W), shape))
+
+
+def test_segmentation_masks_are_not_taken_for_boxes():
+    demo = make_demonstration("pick_up", seed=1, image_size=(60, 107), duration=2.0)
+    assert not drawn_from_boxes(demo.hand_mask.astype(bool))
+    assert not drawn_from_boxes(np.stack([_band(6) > 0] * 5))
+    assert not drawn_from_boxes(np.zeros((3, H, W), bool))
+
+
+def test_box_demonstrations_are_recognised():
+    demo = make_demonstration("pick_up", seed=1, image_size=(60, 107), duration=2.0, input="boxes")
+    assert drawn_from_boxes(demo.hand_mask.astype(bool))
+
+
+def test_a_thin_band_filling_a_box_matches_its_ellipse_by_box_not_by_iou():
+    ellipse = torch.as_tensor(box_masks(np.array([[0.0, 0.0, W, H]]), (H, W))[0], dtype=torch.float64)
+    thin, thick = torch.as_tensor(_band(4)), torch.as_tensor(_band(30))
+    targets = MaskTargets(ellipse[None])
+    # The dIoU asks the band to be as wide as the ellipse (a near, large-looking hand) ...
+    assert diou_loss(thin[None], targets)[0] > diou_loss(thick[None], targets)[0] + 0.2
+    # ... the box loss is content with the thin band that spans the box.
+    assert box_loss(thin[None], targets)[0] < 0.05
+    short = torch.zeros(H, W, dtype=torch.float64)
+    short[: H // 2, : W // 2] = thin[: H // 2, : W // 2]
+    assert box_loss(short[None], targets)[0] > 0.4
+
+
+def test_box_loss_of_empty_masks():
+    target = torch.zeros(2, H, W, dtype=torch.float64)
+    target[0, 10:20, 10:30] = 1
+    rendered = torch.zeros(2, H, W, dtype=torch.float64, requires_grad=True)
+    loss = box_loss(rendered, MaskTargets(target))
+    assert loss.tolist() == [2.0, 0.0]  # empty rendering: maximal; empty target: no term
+    (loss.sum()).backward()
+    assert torch.isfinite(rendered.grad).all()
+
+
+def test_box_loss_gradient_matches_finite_differences():
+    rng = np.random.default_rng(3)
+    target = torch.as_tensor(box_masks(np.array([[5.0, 4.0, 17.0, 13.0]]), (16, 24)), dtype=torch.float64)
+    rendered = torch.as_tensor(rng.uniform(0.0, 1.0, (1, 16, 24)) * (rng.uniform(size=(1, 16, 24)) < 0.3),
+                               dtype=torch.float64).requires_grad_()
+    targets = MaskTargets(target)
+    assert torch.autograd.gradcheck(lambda r: box_loss(r, targets), (rendered,), eps=1e-6, atol=1e-6)
+
+
+def test_the_camera_height_prior_is_zero_at_the_typical_height_and_grows_in_log():
+    weights = LossWeights()
+
+    def prior(height):
+        return float(camera_height_prior(type("S", (), {"camera_height": torch.tensor(height)})(), weights))
+
+    assert prior(weights.typical_camera_height) == pytest.approx(0.0, abs=1e-12)
+    assert prior(weights.typical_camera_height * 2) == pytest.approx(prior(weights.typical_camera_height / 2))
+    assert prior(0.1) > prior(0.3) > 0
+
+
+def test_boxed_hands_leave_the_initial_camera_at_its_typical_height():
+    demo = make_demonstration("pull_left_to_right", seed=0, image_size=(60, 107), duration=2.0, input="boxes")
+    masks = demo.mask_stack(60, 107)
+    guess = initial_guess(masks, demo.contact, demo.intrinsics, demo.num_static, hand_width=False)
+    from warpskill.optimizer.stage_a import INITIAL_CAMERA_HEIGHT
+
+    assert float(guess.camera_height) == pytest.approx(INITIAL_CAMERA_HEIGHT)
+    measured = initial_guess(masks, demo.contact, demo.intrinsics, demo.num_static, hand_width=True)
+    assert float(measured.camera_height) != pytest.approx(INITIAL_CAMERA_HEIGHT)

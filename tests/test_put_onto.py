@@ -1,0 +1,88 @@
+"""On top of the static box or behind it: the masks say where it may be, the physics decides."""
+
+import importlib
+
+import numpy as np
+import pytest
+import torch
+
+from warpskill.engine.distances import support_height
+from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.inputs import rests_on_static
+from warpskill.optimizer.pipeline import optimize
+from warpskill.optimizer.stage_a import initial_guess
+from warpskill.synthetic import make_demonstration
+
+pipeline = importlib.import_module("warpskill.optimizer.pipeline")
+N, H, W = 20, 40, 60
+CONTACT = (np.arange(N) >= 4) & (np.arange(N) < 12)
+STATIC = (20, 34, 20, 40)  # rows r0:r1, columns c0:c1
+
+
+def _masks(object_box, static_box=STATIC):
+    """(N, 3, H, W) masks: a hand at the top, the object's box after the release, the static box."""
+    masks = np.zeros((N, 3, H, W), dtype=np.float32)
+    masks[:12, 0, 0:8, 28:32] = 1
+    for k in range(N):
+        r0, r1, c0, c1 = object_box if k >= 12 else (10, 18, 5, 15)
+        masks[k, 1, r0:r1, c0:c1] = 1
+        r0, r1, c0, c1 = static_box
+        masks[k, 2, r0:r1, c0:c1] = 1
+    return masks
+
+
+def test_an_object_whose_bottom_lies_inside_the_static_box_may_rest_on_it():
+    on_top = _masks((14, 26, 24, 36))  # bottom row 26: inside the static box's rows 20-34
+    assert rests_on_static(on_top, CONTACT).tolist() == [False] * 12 + [True] * 8
+
+
+@pytest.mark.parametrize("object_box, why", [
+    ((12, 21, 24, 36), "behind: cut at the static's top edge"),
+    ((26, 38, 24, 36), "in front: its bottom below the static's"),
+    ((18, 28, 44, 56), "next to: beside the static box"),
+])
+def test_objects_behind_in_front_or_next_to_it_do_not(object_box, why):
+    assert not rests_on_static(_masks(object_box), CONTACT).any(), why
+
+
+def test_no_static_box_or_no_release_gives_no_frames():
+    masks = _masks((14, 26, 24, 36))
+    assert not rests_on_static(masks[:, :2], CONTACT).any()
+    assert not rests_on_static(masks, np.arange(N) >= 4).any()  # held to the end: no release
+    assert not rests_on_static(masks, np.zeros(N, dtype=bool)).any()
+
+
+def test_the_on_static_guess_stands_the_object_on_a_static_box_that_reaches_under_it():
+    demo = make_demonstration("put_onto", seed=0, input="boxes")
+    masks = demo.mask_stack(60, 107)
+    resting = rests_on_static(demo.mask_stack(*demo.image_size), demo.contact)
+    assert resting.any()
+    guess = initial_guess(masks, demo.contact, demo.intrinsics, demo.num_static, object_depth="on the static",
+                          resting=resting)
+    top = guess.static_pos[0, 2] + 0.5 * guess.static_size[0, 2]
+    bottom = guess.object_pos[torch.as_tensor(resting), 2] - 0.5 * guess.object_size[2]
+    assert torch.allclose(bottom, top.expand_as(bottom), atol=1e-5)
+    support = support_height(guess.object_pos[torch.as_tensor(resting)], guess.static_pos, guess.static_rot,
+                             guess.static_size)
+    assert torch.allclose(support, top.expand_as(support))
+    with pytest.raises(ValueError, match="static box"):
+        initial_guess(masks, demo.contact, demo.intrinsics, 0, object_depth="on the static", resting=resting)
+
+
+def test_both_placements_go_through_the_physics(monkeypatch):
+    starts = []
+    make = pipeline.make_physical_scene
+
+    def counted(fit, *args, **kwargs):
+        starts.append(fit)
+        return make(fit, *args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "make_physical_scene", counted)
+    small = OptimizeConfig(iterations=3, init_iterations=3)
+    demo = make_demonstration("put_onto", seed=0, input="boxes")
+    optimize(demo, config=small, progress=False)
+    assert len(starts) == 2
+    assert not torch.equal(starts[0].object_pos, starts[1].object_pos)
+    starts.clear()
+    optimize(make_demonstration("put_behind", seed=0, input="boxes"), config=small, progress=False)
+    assert len(starts) == 1
