@@ -95,3 +95,55 @@ def test_boxed_hands_leave_the_initial_camera_at_its_typical_height():
     assert float(guess.camera_height) == pytest.approx(INITIAL_CAMERA_HEIGHT)
     measured = initial_guess(masks, demo.contact, demo.intrinsics, demo.num_static, hand_width=True)
     assert float(measured.camera_height) != pytest.approx(INITIAL_CAMERA_HEIGHT)
+
+
+def test_parts_out_of_sight_are_runs_of_empty_frames_of_a_part_seen_elsewhere():
+    from warpskill.optimizer.inputs import out_of_sight
+
+    masks = np.zeros((10, 3, 8, 8), dtype=np.float32)
+    masks[:, 0, :2, :2] = 1
+    masks[[0, 1, 2, 3, 5, 9], 1, 3:5, 3:5] = 1  # lost for one frame (4), hidden for three (6-8)
+    masks[:, 2] = 0  # a static part never seen: nothing is known of it
+    masks[6:, 0] = 0  # the hand is never asked to hide
+    absent = out_of_sight(masks)
+    assert absent[:, 1].tolist() == [False] * 6 + [True] * 3 + [False]
+    masks[:4, 1] = 0  # not yet seen in frames 0-3: carried into the view, perhaps
+    assert out_of_sight(masks)[:, 1].tolist() == [False] * 6 + [True] * 3 + [False]
+    assert not absent[:, 0].any() and not absent[:, 2].any()
+
+
+def test_a_rendering_of_a_hidden_part_is_asked_to_vanish():
+    from warpskill.optimizer.losses import hidden_loss
+
+    target = torch.zeros(4, 2, H, W, dtype=torch.float64)
+    target[:2, 1, 10:20, 10:30] = 1  # seen with 200 px in frames 0-1, hidden in 2-3
+    absent = torch.zeros(4, 2, dtype=torch.bool)
+    absent[2:, 1] = True
+    targets = MaskTargets(target, absent=absent)
+    rendered = torch.zeros(4, 2, H, W, dtype=torch.float64, requires_grad=True)
+    with torch.no_grad():
+        rendered[2, 1, :5, :10] = 1  # 50 px still showing: a quarter of the typical 200
+        rendered[3, 1] = 1  # everything showing: at most 1
+    loss = hidden_loss(rendered, targets)
+    assert loss[2, 1].item() == pytest.approx(0.25) and loss[3, 1].item() == pytest.approx(1.0)
+    loss[2, 1].backward()
+    assert (rendered.grad[2, 1] > 0).all()
+
+
+def test_a_box_that_grows_is_read_as_the_object_coming_closer():
+    from warpskill.contract.camera import Intrinsics
+
+    N, h, w = 12, 60, 107
+    masks = np.zeros((N, 2, h, w), dtype=np.float32)
+    masks[:, 0, 0:20, 50:54] = 1
+    for k in range(N):
+        half = 6 if k < 6 else 6 + 3 * (k - 5)  # from frame 6 on, the box widens
+        masks[k, 1, 30 - half // 2 : 30 + half // 2, 53 - half : 53 + half] = 1
+    contact = np.arange(N) >= 3
+    guess = initial_guess(masks, contact, Intrinsics.default(h, w), 0, object_depth="resting depth", hand_width=False)
+    from warpskill.engine.projection import world_to_camera
+
+    depth = world_to_camera(guess.object_pos.double(), guess.camera_height.double(),
+                            guess.camera_elevation.double())[:, 2]
+    assert depth[-1] < 0.6 * depth[0]  # 12 px wide, then 36: about a third as far
+    assert torch.allclose(depth[:6], depth[0].expand(6), rtol=1e-3)

@@ -45,15 +45,49 @@ def working_inputs(demo: Demonstration, config: OptimizeConfig, device: torch.de
     hand_boxed = drawn_from_boxes(np.asarray(demo.hand_mask, dtype=bool))
     boxed = torch.zeros(masks.shape[1], dtype=torch.bool, device=device)
     boxed[0] = hand_boxed
+    absent = torch.as_tensor(out_of_sight(masks.cpu().numpy()), device=device)
     return WorkingInputs(
         intrinsics=demo.intrinsics.resized(h, w),
         masks=masks,
-        targets=MaskTargets(masks, boxed),
+        targets=MaskTargets(masks, boxed, absent),
         contact_signal=contact_signal,
         contact=torch.as_tensor(contact_signal, dtype=torch.float32, device=device),
         object_visible=(masks[:, 1].flatten(1).amax(1) > 0.5).float(),
         hand_boxed=hand_boxed,
     )
+
+
+def out_of_sight(masks: np.ndarray, *, min_run: int = 3) -> np.ndarray:
+    """(N, C) bool: frames in which a cuboid's part is known to be out of sight.
+
+    Once seen, the object's and the static boxes' masks (channels 1...) may vanish because
+    the part is hidden behind another one or has left the image, or because a segmenter
+    lost it for a frame. Runs of at least ``min_run`` empty frames after the part was first
+    seen are taken for the former. Before it is first seen, a part may be anywhere (carried
+    into the view, or not yet annotated): no evidence. The hand (channel 0) is left free: it
+    enters and leaves the view with the arm, at no pace the masks tell.
+
+    Args:
+        masks: (N, C, h, w) masks in [0, 1].
+    """
+    N, C = masks.shape[:2]
+    empty = ~(masks > 0.5).reshape(N, C, -1).any(-1)
+    out = np.zeros((N, C), dtype=bool)
+    for c in range(1, C):
+        if empty[:, c].all():
+            continue
+        k = int(np.flatnonzero(~empty[:, c])[0])
+        while k < N:
+            if not empty[k, c]:
+                k += 1
+                continue
+            end = k
+            while end < N and empty[end, c]:
+                end += 1
+            if end - k >= min_run:
+                out[k:end, c] = True
+            k = end
+    return out
 
 
 def drawn_from_boxes(masks: np.ndarray, *, tolerance: float = 0.05, min_share: float = 0.8) -> bool:

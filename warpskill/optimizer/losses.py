@@ -11,14 +11,25 @@ class MaskTargets:
     """Target masks (..., C, H, W) in [0, 1] with their moments computed once, for repeated losses.
 
     ``boxed``: (C,) bool, channels whose masks are drawn from boxes (the shape inside a box
-    annotation): :func:`box_loss` compares only their boxes.
+    annotation): :func:`box_loss` compares only their boxes. ``absent``: (N, C) bool, frames
+    in which a channel's part is known to be out of sight (hidden behind another part or out
+    of the image), not merely unseen: :func:`hidden_loss` asks its rendering to vanish there.
     """
 
-    def __init__(self, masks: torch.Tensor, boxed: torch.Tensor | None = None):
+    def __init__(self, masks: torch.Tensor, boxed: torch.Tensor | None = None, absent: torch.Tensor | None = None):
         self.masks = masks
         self.boxed = boxed
+        self.absent = absent
         with torch.no_grad():
             self.moments = _MaskMoments(masks)
+            if absent is not None:  # (N, C) masks
+                mass = self.moments.mass
+                seen = mass > _EMPTY_MASS
+                #: (C,) [px] each channel's median mass where it is seen: the scale of a hidden rendering.
+                self.typical_mass = torch.stack([
+                    mass[seen[:, c], c].median() if seen[:, c].any() else mass.new_ones(())
+                    for c in range(mass.shape[1])
+                ])
 
 
 def diou_loss(rendered: torch.Tensor, target: torch.Tensor | MaskTargets) -> tuple[torch.Tensor, torch.Tensor]:
@@ -60,6 +71,17 @@ def diou_loss(rendered: torch.Tensor, target: torch.Tensor | MaskTargets) -> tup
     rendered_empty = r.mass <= _EMPTY_MASS
     loss = torch.where(rendered_empty, torch.full_like(iou, 2.0), 1.0 - iou + distance.clamp_max(1.0))
     return torch.where(valid, loss, torch.zeros_like(loss)), valid
+
+
+def hidden_loss(rendered: torch.Tensor, targets: MaskTargets) -> torch.Tensor:
+    """Per mask (N, C): the rendered mass [px] over the channel's typical mass, at most 1.
+
+    Where a part is known to be out of sight (``targets.absent``), a rendering that shows
+    it is wrong: it should be occluded or outside the image. An empty target elsewhere says
+    nothing (:func:`diou_loss` gives it no term).
+    """
+    mass = rendered.sum((-2, -1))
+    return (mass / targets.typical_mass.clamp_min(1.0)).clamp_max(1.0)
 
 
 def box_loss(rendered: torch.Tensor, targets: MaskTargets) -> torch.Tensor:

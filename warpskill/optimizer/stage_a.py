@@ -39,6 +39,7 @@ MIN_STATIC_SIZE = 0.02  # [m]
 INITIAL_CAMERA_HEIGHT = 0.45  # [m]
 INITIAL_CAMERA_ELEVATION = 0.6  # [rad]
 FREE_MARGIN_FRAMES = 2  # frames next to a contact frame that the resting priors ignore
+APPROACH_GROWTH = 1.25  # a box this much wider than where first seen whole: the cuboid has come closer
 
 
 class _MaskGeometry:
@@ -170,18 +171,26 @@ def initial_guess(
         t = min(t, 3.0)
         return centre + t * ray, t  # t is the camera depth (rays have unit z in camera axes)
 
+    h_img, w_img = targets.shape[-2:]
+
     def cuboid_from_masks(geom: _MaskGeometry, on_ground: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per-frame centres, a size and visibility of an upright cuboid seen in ``geom``.
 
-        Where it is first seen the cuboid stands on the ground below its mask's bottom
-        edge; later it stands there again (``on_ground``) or keeps that camera depth.
+        Where it is first seen whole (its box off the image border) the cuboid stands on the
+        ground below its mask's bottom edge; later it stands there again (``on_ground``) or
+        keeps that camera depth. Where its box is much wider than there, it has come closer
+        (size constancy): its depth shrinks in proportion, along the ray through the box's centre.
         """
-        first = np.flatnonzero(geom.visible)[0]
+        visible = np.flatnonzero(geom.visible)
+        u0, v0, u1, v1 = geom.box[visible].T
+        whole = visible[(u0 > 0) & (v0 > 0) & (u1 < w_img) & (v1 < h_img)]
+        first = whole[0] if len(whole) else visible[0]
         u0, v0, u1, v1 = geom.box[first]
         _, rest_depth = ground_point(np.array([0.5 * (u0 + u1), v1]))
+        rest_width = u1 - u0
         pos = np.zeros((N, 3))
         sizes = []
-        for k in np.flatnonzero(geom.visible):
+        for k in visible:
             u0, v0, u1, v1 = geom.box[k]
             bottom_pixel = np.array([0.5 * (u0 + u1), v1])
             bottom, depth = ground_point(bottom_pixel)
@@ -190,6 +199,10 @@ def initial_guess(
                 bottom = centre + depth * _rays(bottom_pixel[None], K, R_wc)[0]
             width = (u1 - u0) * depth / K[0, 0]
             height = np.clip((v1 - v0) * depth / K[1, 1] * 0.6, 0.03, 0.4)
+            if k > first and u0 > 0 and u1 < w_img and u1 - u0 > APPROACH_GROWTH * rest_width:
+                depth = rest_depth * rest_width / (u1 - u0)
+                pos[k] = centre + depth * _rays(np.array([[0.5 * (u0 + u1), 0.5 * (v0 + v1)]]), K, R_wc)[0]
+                continue
             sizes.append([width, width, height])
             pos[k] = bottom + np.array([0.0, 0.5 * width, 0.5 * height])
         size = np.clip(np.median(np.array(sizes), 0), 0.03, 0.5)
