@@ -205,8 +205,13 @@ def optimize_many(
                 starts.append(start)
                 on_static.append(support)
                 contacts.append(torch.as_tensor(signal, dtype=torch.float32, device=device))
-    scenes = [make_physical_scene(start, signal, demos[physics_owners[b]].fps, config, knowns[physics_owners[b]])
-              .to(device) for b, (start, signal) in enumerate(zip(starts, signals))]
+    def unseen_before_contact(i: int, signal: np.ndarray) -> bool:
+        onset = np.flatnonzero(signal)
+        return len(onset) > 0 and not bool(inputs[i].object_visible[: onset[0]].any())
+
+    scenes = [make_physical_scene(start, signal, demos[physics_owners[b]].fps, config, knowns[physics_owners[b]],
+                                  unseen_before_contact(physics_owners[b], signal)).to(device)
+              for b, (start, signal) in enumerate(zip(starts, signals))]
 
     def simulate_scenes(live: list[int]) -> list[PhysicalRollout]:
         rollouts = simulate_many([scenes[b].simulation_inputs() for b in live],

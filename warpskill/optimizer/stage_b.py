@@ -70,6 +70,8 @@ class PhysicalScene(torch.nn.Module):
         grasp_level: |g| [m] the grasp signal starts at, positive in contact frames.
         physics: engine constants.
         known: lengths held at their values (:data:`warpskill.optimizer.known.KNOWN_LENGTHS`).
+        unseen_before_contact: the object's mask is empty in every frame before the first
+            contact frame (it was carried into the view).
     """
 
     def __init__(
@@ -84,6 +86,7 @@ class PhysicalScene(torch.nn.Module):
         grasp_level: float,
         physics: PhysicsConfig,
         known: dict[str, float] | None = None,
+        unseen_before_contact: bool = False,
     ):
         super().__init__()
         self.known = dict(known or {})
@@ -111,8 +114,14 @@ class PhysicalScene(torch.nn.Module):
         self.grasp0 = P(grasp_target[0].reshape(()).clone())
         control = self._fit_control(fit, contact, grasp_target, basis, dt)
         self.control = P(control)
-        self.hand_pos0 = P(fit.hand_pos[0] - self._grasp_onset_shift(fit, contact, control, basis, dt, grasp_level))
-        self.object_pos0 = P(fit.object_pos[0].clone())
+        gap, normal = self._grasp_onset_gap(fit, contact, control, basis, dt, grasp_level)
+        # A correction for the spline's error, not a relocation: far from the object, stage (a)
+        # itself disagrees with the contact signal, and moving the whole path would undo its fit.
+        shift = gap.clamp(0.0, MAX_ONSET_SHIFT)
+        self.hand_pos0 = P(fit.hand_pos[0] - shift * normal)
+        # An object the masks never saw before the grasp (carried into the view) may start
+        # wherever the hand first takes it: the rest of the gap moves the object.
+        self.object_pos0 = P(fit.object_pos[0] + ((gap - shift) * normal if unseen_before_contact else 0.0))
         self.object_rot6 = P(rotation_to_6d(fit.object_rot[0]))
         self.object_size_raw = P(positive_inverse(fit.object_size, MIN_OBJECT_SIZE))
         self.static_xy = P(fit.static_pos[:, :2].clone())
@@ -152,22 +161,23 @@ class PhysicalScene(torch.nn.Module):
         angular = solve(mid_basis, omega)
         return torch.as_tensor(np.concatenate([linear, angular, grasp_rate], 1), dtype=torch.float32)
 
-    def _grasp_onset_shift(
+    def _grasp_onset_gap(
         self, fit: SceneTrajectories, contact: np.ndarray, control: torch.Tensor, basis: np.ndarray, dt: float,
         depth: float,
-    ) -> torch.Tensor:
-        """Shift (3,) [m] of the hand's whole path that puts its simulated tip ``depth`` inside
-        the object at the first contact frame.
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """How far [m] (0-d, >= 0) the simulated hand tip is from being ``depth`` inside the
+        object at the first contact frame, and along which normal (3,) of the object.
 
         The spline only approximates stage (a)'s hand path, and stage (a) only asks for the
         tip to be inside on average; millimetres decide whether the grasp switch saturates
-        (a switch below 1 carries the object only partly, and it slips out). The tip moves
-        along the normal of the object's face nearest to it; once the grasp closes, the rigid
-        carry keeps the depth.
+        (a switch below 1 carries the object only partly, and it slips out). Moving the tip
+        by ``-gap * normal`` (or the object by ``+gap * normal``) closes it, along the normal
+        of the object's face nearest to the tip; once the grasp closes, the rigid carry keeps
+        the depth.
         """
         onset = np.flatnonzero(contact)
         if len(onset) == 0:
-            return torch.zeros(3)
+            return torch.zeros(()), torch.zeros(3)
         steps = int(onset[0]) * self.steps_per_frame
         tip = fit.hand_pos[0] + dt * torch.as_tensor(basis[:steps].sum(0), dtype=torch.float32) @ control[:, :3]
         pos, rot, size = fit.object_pos[0], fit.object_rot[0], fit.object_size
@@ -176,9 +186,7 @@ class PhysicalScene(torch.nn.Module):
         normal = rot[:, axis] * torch.sign(local[axis])
         depth = min(depth, 0.25 * float(size.min()))
         distance = box_signed_distance(tip, pos, rot, size)
-        # A correction for the spline's error, not a relocation: far from the object, stage (a)
-        # itself disagrees with the contact signal, and moving the whole path would undo its fit.
-        return (distance + depth).clamp(0.0, MAX_ONSET_SHIFT) * normal
+        return (distance + depth).clamp_min(0.0), normal
 
     def cuboids(self) -> tuple[torch.Tensor, ...]:
         """Object size (3,), static centres (K, 3), rotations (K, 3, 3) and sizes (K, 3)."""
@@ -249,9 +257,10 @@ class PhysicalScene(torch.nn.Module):
 
 def make_physical_scene(
     fit: SceneTrajectories, contact_signal: np.ndarray, fps: float, config: OptimizeConfig,
-    known: dict[str, float] | None = None,
+    known: dict[str, float] | None = None, unseen_before_contact: bool = False,
 ) -> PhysicalScene:
-    """Stage (b)'s parameters started from the per-frame scene ``fit`` (on the CPU), ``known`` lengths held."""
+    """Stage (b)'s parameters started from the per-frame scene ``fit`` (on the CPU), ``known`` lengths held
+    (``unseen_before_contact``: see :class:`PhysicalScene`)."""
     return PhysicalScene(
         fit,
         contact_signal,
@@ -262,6 +271,7 @@ def make_physical_scene(
         grasp_level=2.0 * config.weights.grasp_margin,
         physics=config.physics,
         known=known,
+        unseen_before_contact=unseen_before_contact,
     )
 
 
