@@ -10,7 +10,9 @@ from warpskill.engine.distances import support_height
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.inputs import rests_on_static
 from warpskill.optimizer.pipeline import optimize
+from warpskill.optimizer.scene import SceneTrajectories, static_in_object_penalty
 from warpskill.optimizer.stage_a import initial_guess
+from warpskill.optimizer.weights import LossWeights
 from warpskill.synthetic import make_demonstration
 
 pipeline = importlib.import_module("warpskill.optimizer.pipeline")
@@ -86,3 +88,25 @@ def test_both_placements_go_through_the_physics(monkeypatch):
     starts.clear()
     optimize(make_demonstration("put_behind", seed=0, input="boxes"), config=small, progress=False)
     assert len(starts) == 1
+
+
+def _one_box_scene(object_z, object_size):
+    eye = torch.eye(3)
+    return SceneTrajectories(
+        hand_pos=torch.zeros(2, 3), hand_rot=eye.expand(2, 3, 3), object_pos=torch.tensor([[0.0, 0.0, object_z]] * 2),
+        object_rot=eye.expand(2, 3, 3), object_size=torch.tensor(object_size), static_pos=torch.tensor([[0.0, 0.0, 0.1]]),
+        static_rot=eye[None], static_size=torch.tensor([[0.3, 0.3, 0.2]]), camera_height=torch.tensor(0.45),
+        camera_elevation=torch.tensor(0.6),
+    )
+
+
+def test_a_static_box_inside_a_larger_object_is_penalised_and_one_under_it_is_not():
+    weights = LossWeights()
+    enclosing = _one_box_scene(0.125, [0.5, 0.5, 0.25])  # every object sample point outside the static box
+    assert float(static_in_object_penalty(enclosing, weights)) > 1.0
+    resting = _one_box_scene(0.25, [0.1, 0.1, 0.1])  # standing on its top
+    assert float(static_in_object_penalty(resting, weights)) == pytest.approx(0.0, abs=1e-9)
+    scene = _one_box_scene(0.125, [0.5, 0.5, 0.25])
+    scene.object_pos.requires_grad_(True)
+    static_in_object_penalty(scene, weights).backward()
+    assert scene.object_pos.grad[:, 2].sum() < 0  # the gradient lifts the object off the static box

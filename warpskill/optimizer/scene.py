@@ -105,3 +105,27 @@ def off_static_penalty(scene: SceneTrajectories, supported: torch.Tensor, weight
     local = (scene.object_pos - scene.static_pos[0]) @ scene.static_rot[0]
     outside = (local[:, :2].abs() - 0.5 * scene.static_size[0, :2]).clamp_min(0.0).square().sum(-1)
     return weights.penetration * (supported.to(outside) * outside).mean()
+
+
+_TOP_GRID = torch.tensor([[x, y, 0.5] for x in (-0.5, 0.0, 0.5) for y in (-0.5, 0.0, 0.5)])  # (9, 3) of a unit box
+
+
+def static_in_object_penalty(scene: SceneTrajectories, weights: LossWeights) -> torch.Tensor:
+    """How deep the static boxes' top faces reach into the object from below (squared [m^2], weighted).
+
+    The engine samples points on the moved object only, so a static box smaller than the
+    object can sit inside it with every sample point's push cancelling another's; the 3 x 3
+    grid of each static top face is held out of the object here. The object counts as
+    reaching up without end (its top face does not push), so the way out is up or sideways,
+    as for an object lowered onto a box, never down through the ground.
+    """
+    if scene.static_pos.shape[0] == 0:
+        return scene.object_size.new_zeros(())
+    grid = _TOP_GRID.to(scene.static_size)
+    points = scene.static_pos[:, None] + (grid * scene.static_size[:, None]) @ scene.static_rot.transpose(-1, -2)
+    points = points.reshape(1, -1, 3)  # (1, 9 K, 3)
+    local = (points - scene.object_pos[:, None]) @ scene.object_rot  # (N, 9 K, 3) in the object's frame
+    half = 0.5 * scene.object_size
+    excess = torch.stack([local[..., 0].abs() - half[0], local[..., 1].abs() - half[1], -local[..., 2] - half[2]], -1)
+    depth = (-excess.amax(-1)).clamp_min(0.0)
+    return weights.penetration * depth.square().sum(-1).mean()

@@ -27,6 +27,7 @@ from warpskill.optimizer.scene import (
     SceneTrajectories,
     camera_height_prior,
     off_static_penalty,
+    static_in_object_penalty,
     perceptual_loss,
     positive,
     positive_inverse,
@@ -411,6 +412,7 @@ def initial_objective(
         "penetration": weights.penetration * below,
 
         "camera height": camera_height_prior(scene, weights),
+        "static in object": static_in_object_penalty(scene, weights),
     }
     if supported is not None:
         terms["on the static"] = off_static_penalty(scene, supported, weights)

@@ -27,6 +27,7 @@ from warpskill.optimizer.scene import (
     SceneTrajectories,
     camera_height_prior,
     off_static_penalty,
+    static_in_object_penalty,
     perceptual_loss,
     positive,
     positive_inverse,
@@ -317,6 +318,7 @@ def physical_objective(
         "stability": weights.stability * result.still_velocity.mean(),
 
         "camera height": camera_height_prior(result.scene, weights),
+        "static in object": static_in_object_penalty(result.scene, weights),
     }
     if supported is not None:
         terms["on the static"] = off_static_penalty(result.scene, supported, weights)
