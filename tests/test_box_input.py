@@ -130,20 +130,26 @@ def test_a_rendering_of_a_hidden_part_is_asked_to_vanish():
     assert (rendered.grad[2, 1] > 0).all()
 
 
-def test_a_box_that_grows_is_read_as_the_object_coming_closer():
+def test_a_carried_box_that_grows_is_read_as_the_object_coming_closer():
     from warpskill.contract.camera import Intrinsics
 
     N, h, w = 12, 60, 107
     masks = np.zeros((N, 2, h, w), dtype=np.float32)
     masks[:, 0, 0:20, 50:54] = 1
     for k in range(N):
-        half = 6 if k < 6 else 6 + 3 * (k - 5)  # from frame 6 on, the box widens
-        masks[k, 1, 30 - half // 2 : 30 + half // 2, 53 - half : 53 + half] = 1
+        half = 6 if k < 6 else 6 + 3 * (k - 5)  # from frame 6 on, the box widens into the bottom border
+        masks[k, 1, 30 - half // 2 : 30 + half // 2 if k < 6 else h, 53 - half : 53 + half] = 1
     contact = np.arange(N) >= 3
     guess = initial_guess(masks, contact, Intrinsics.default(h, w), 0, object_depth="resting depth", hand_width=False)
     from warpskill.engine.projection import world_to_camera
 
-    depth = world_to_camera(guess.object_pos.double(), guess.camera_height.double(),
-                            guess.camera_elevation.double())[:, 2]
-    assert depth[-1] < 0.6 * depth[0]  # 12 px wide, then 36: about a third as far
-    assert torch.allclose(depth[:6], depth[0].expand(6), rtol=1e-3)
+    def depth(guess):
+        return world_to_camera(guess.object_pos.double(), guess.camera_height.double(),
+                               guess.camera_elevation.double())[:, 2]
+
+    assert depth(guess)[-1] < 0.6 * depth(guess)[0]  # 12 px wide, then 36: about a third as far
+    assert torch.allclose(depth(guess)[:6], depth(guess)[0].expand(6), rtol=1e-3)
+    # Not in the hand: the box's bottom edge on the ground places it, as for any resting cuboid.
+    resting = initial_guess(masks, contact, Intrinsics.default(h, w), 0, object_depth="resting depth",
+                            hand_width=False, carried=np.zeros(N, bool))
+    assert depth(resting)[-1] > 0.9 * depth(resting)[0]

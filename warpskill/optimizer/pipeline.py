@@ -157,7 +157,8 @@ def optimize_many(
             if on_static and not resting[i].any():
                 continue
             guess = initial_guess(given.masks.cpu().numpy(), given.contact_signal, given.intrinsics, demo.num_static,
-                                  object_depth=hypothesis, resting=resting[i], hand_width=not given.hand_boxed)
+                                  object_depth=hypothesis, resting=resting[i], hand_width=not given.hand_boxed,
+                                  carried=given.contact_signal | held[i])
             owners.append(i)
             hypotheses.append(hypothesis)
             supported.append(torch.as_tensor(resting[i], dtype=torch.float32, device=device) if on_static else None)

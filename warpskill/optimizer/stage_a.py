@@ -40,7 +40,7 @@ MIN_STATIC_SIZE = 0.02  # [m]
 INITIAL_CAMERA_HEIGHT = 0.45  # [m]
 INITIAL_CAMERA_ELEVATION = 0.6  # [rad]
 FREE_MARGIN_FRAMES = 2  # frames next to a contact frame that the resting priors ignore
-APPROACH_GROWTH = 1.25  # a box this much wider than where first seen whole: the cuboid has come closer
+APPROACH_GROWTH = 1.25  # a carried cuboid's box this much wider than at first: it has come closer
 
 
 class _MaskGeometry:
@@ -118,6 +118,7 @@ def initial_guess(
     object_depth: str = "resting depth",
     resting: np.ndarray | None = None,
     hand_width: bool = True,
+    carried: np.ndarray | None = None,
 ) -> SceneTrajectories:
     """A rough scene read off the masks' geometry, before any optimisation.
 
@@ -144,10 +145,12 @@ def initial_guess(
             (needed by ``"on the static"``).
         hand_width: whether the hand mask's width measures its depth (not so for masks
             drawn from boxes); without it the camera starts at its typical height.
+        carried: (N,) bool, frames in which the object may be in the hand (default: ``contact``).
     """
     if object_depth not in OBJECT_DEPTH_HYPOTHESES:
         raise ValueError(f"object_depth must be one of {OBJECT_DEPTH_HYPOTHESES}, not {object_depth!r}")
     on_static = object_depth == "on the static"
+    carried = np.asarray(contact if carried is None else carried, dtype=bool)
     if on_static and (num_static == 0 or resting is None or not np.any(resting)):
         raise ValueError("object_depth 'on the static' needs a static box and frames where the object rests on it")
     N = targets.shape[0]
@@ -177,15 +180,14 @@ def initial_guess(
     def cuboid_from_masks(geom: _MaskGeometry, on_ground: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per-frame centres, a size and visibility of an upright cuboid seen in ``geom``.
 
-        Where it is first seen whole (its box off the image border) the cuboid stands on the
-        ground below its mask's bottom edge; later it stands there again (``on_ground``) or
-        keeps that camera depth. Where its box is much wider than there, it has come closer
-        (size constancy): its depth shrinks in proportion, along the ray through the box's centre.
+        Where it is first seen the cuboid stands on the ground below its mask's bottom edge;
+        later it stands there again (``on_ground``) or keeps that camera depth. While it is
+        ``carried``, a box much wider than where first seen says it has come closer (size
+        constancy; its bottom edge may be the image's border): its depth shrinks in
+        proportion, along the ray through the box's centre.
         """
         visible = np.flatnonzero(geom.visible)
-        u0, v0, u1, v1 = geom.box[visible].T
-        whole = visible[(u0 > 0) & (v0 > 0) & (u1 < w_img) & (v1 < h_img)]
-        first = whole[0] if len(whole) else visible[0]
+        first = visible[0]
         u0, v0, u1, v1 = geom.box[first]
         _, rest_depth = ground_point(np.array([0.5 * (u0 + u1), v1]))
         rest_width = u1 - u0
@@ -200,7 +202,7 @@ def initial_guess(
                 bottom = centre + depth * _rays(bottom_pixel[None], K, R_wc)[0]
             width = (u1 - u0) * depth / K[0, 0]
             height = np.clip((v1 - v0) * depth / K[1, 1] * 0.6, 0.03, 0.4)
-            if k > first and u0 > 0 and u1 < w_img and u1 - u0 > APPROACH_GROWTH * rest_width:
+            if carried[k] and u0 > 0 and u1 < w_img and u1 - u0 > APPROACH_GROWTH * rest_width:
                 depth = rest_depth * rest_width / (u1 - u0)
                 pos[k] = centre + depth * _rays(np.array([[0.5 * (u0 + u1), 0.5 * (v0 + v1)]]), K, R_wc)[0]
                 continue

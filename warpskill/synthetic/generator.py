@@ -61,7 +61,8 @@ def make_demonstration(
             grasp onset to the release; a pick-up's ends once the lift is done or the
             object leaves the view, while the hand still holds it); and the scenes add
             the real videos' situations (:data:`PICK_UP_ENDINGS`, a hand that enters
-            through the border, wide static boxes cut by the frame).
+            through the border, wide static boxes cut by the frame; a put behind leaves
+            the moved object partly or wholly hidden by the static box).
     """
     check_action(action)
     if input not in INPUTS:
