@@ -181,20 +181,52 @@ def rests_on_static(masks: np.ndarray, contact: np.ndarray, *, min_frames: int =
     the release to the video's end, the object's box overlaps the static's box across at
     least half of the narrower one and its bottom row lies inside the static's box (below
     its top edge by a tenth of its height, above its bottom edge): behind the box, the
-    object would be cut at the static's top edge; in front of it, its bottom would be lower
-    than the static's. Whether it is really on top is for the physics to decide (see
-    :func:`warpskill.optimize`); when the evidence is absent, nothing is returned.
+    object would be cut at the static's top edge (:func:`cut_by_static`); in front of it,
+    its bottom would be lower than the static's. Whether it is really on top is for the
+    physics to decide (see :func:`warpskill.optimize`); when the evidence is absent,
+    nothing is returned.
 
     Args:
         masks: (N, 2 + K, h, w) masks in [0, 1]: hand, object, statics.
         contact: (N,) bool.
         min_frames: fewer frames after the release than this are ignored.
     """
+    return _after_release(masks, contact, min_frames, lambda bottom, top, height: bottom > top + 0.1 * height)
+
+
+def cut_by_static(masks: np.ndarray, contact: np.ndarray, *, min_frames: int = 2) -> np.ndarray:
+    """(N,) bool: frames after the release in which the object is cut by the first static box's top edge.
+
+    As :func:`rests_on_static`, but the object's bottom row lies at the static box's top
+    edge (from a quarter of the static's height above it to a tenth below it), in at least
+    80 % of the frames: the static box hides the object's lower part, so the object stands
+    behind it, not on it (on top, its bottom would show inside the static's box).
+    """
+    return _after_release(masks, contact, min_frames,
+                          lambda bottom, top, height: (bottom >= top - 0.25 * height) & (bottom <= top + 0.1 * height),
+                          share=0.8)
+
+
+def _after_release(masks: np.ndarray, contact: np.ndarray, min_frames: int, bottom_rule, share: float = 1.0) -> np.ndarray:
+    """The frames from the release to the end, if in at least ``share`` of them the object's
+    box overlaps the static's across half the narrower one, its bottom lies above the
+    static's, and its bottom row meets ``bottom_rule(object bottom, static top, static height)`` [px]."""
     N = len(contact)
     out = np.zeros(N, dtype=bool)
     on = np.flatnonzero(contact)
     if masks.shape[1] < 3 or len(on) == 0 or on[-1] > N - 1 - min_frames:
         return out
+    after = np.arange(on[-1] + 1, N)
+    obj, static = _boxes(masks[after, 1] > 0.5), _boxes(masks[after, 2] > 0.5)
+    if np.isnan(obj).any() or np.isnan(static).any():
+        return out
+    overlap = np.minimum(obj[:, 2], static[:, 2]) - np.maximum(obj[:, 0], static[:, 0])
+    narrower = np.minimum(obj[:, 2] - obj[:, 0], static[:, 2] - static[:, 0])
+    height = static[:, 3] - static[:, 1]
+    placed = ((overlap >= 0.5 * narrower) & bottom_rule(obj[:, 3], static[:, 1], height) & (obj[:, 3] < static[:, 3]))
+    if placed.mean() >= share:
+        out[after] = True
+    return out
     after = np.arange(on[-1] + 1, N)
     obj, static = _boxes(masks[after, 1] > 0.5), _boxes(masks[after, 2] > 0.5)
     if np.isnan(obj).any() or np.isnan(static).any():

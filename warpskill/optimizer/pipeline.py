@@ -25,7 +25,7 @@ from warpskill.engine.distances import box_signed_distance
 from warpskill.optimizer.batching import Backend, render_many, simulate_many
 from warpskill.optimizer.checkpoint import Checkpoint, fingerprint
 from warpskill.optimizer.config import OptimizeConfig
-from warpskill.optimizer.inputs import held_after_contact, rests_on_static, working_inputs
+from warpskill.optimizer.inputs import cut_by_static, held_after_contact, rests_on_static, working_inputs
 from warpskill.optimizer.known import check_known
 from warpskill.optimizer.loop import minimise
 from warpskill.optimizer.scene import SceneTrajectories, perceptual_loss
@@ -145,8 +145,12 @@ def optimize_many(
 
     # Frames after the release where the object may stand on the static box (or behind it).
     # (At the masks' own resolution: a few pixels tell the object on top from the object behind.)
-    resting = [rests_on_static(demo.mask_stack(*demo.image_size), given.contact_signal)
-               for demo, given in zip(demos, inputs)]
+    full = [demo.mask_stack(*demo.image_size) for demo in demos]
+    resting = [rests_on_static(masks, given.contact_signal) for masks, given in zip(full, inputs)]
+    # ... and those where it stands behind it, its lower part hidden by the box's top edge.
+    behind = [cut_by_static(masks, given.contact_signal) for masks, given in zip(full, inputs)]
+    behind = [torch.as_tensor(b, dtype=torch.float32, device=device) if b.any() else None for b in behind]
+    del full
 
     # Stage (a): every demonstration from each object-depth hypothesis; the lower loss wins,
     # except that a placement on the static box goes on to the physics beside the winner.
@@ -170,7 +174,7 @@ def optimize_many(
         return [
             initial_objective(scene, masks, inputs[owners[j]].targets, inputs[owners[j]].contact,
                               demos[owners[j]].fps, scene_weights[owners[j]], uncertain[owners[j]],
-                              supported[j])
+                              supported[j], behind[owners[j]])
             for j, scene, masks in zip(live, scenes, rendered)
         ]
 
@@ -226,7 +230,7 @@ def optimize_many(
         return [
             physical_objective(result, masks, inputs[physics_owners[b]].targets, contacts[b],
                                inputs[physics_owners[b]].object_visible, scene_weights[physics_owners[b]],
-                               on_static[b])
+                               on_static[b], behind[physics_owners[b]])
             for b, result, masks in zip(live, results, rendered)
         ]
 

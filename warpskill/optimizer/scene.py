@@ -107,6 +107,16 @@ def off_static_penalty(scene: SceneTrajectories, supported: torch.Tensor, weight
     return weights.penetration * (supported.to(outside) * outside).mean()
 
 
+def in_front_of_back_penalty(scene: SceneTrajectories, behind: torch.Tensor, weights: LossWeights) -> torch.Tensor:
+    """How far the object's centre lies in front of the first static box's back [m, squared,
+    weighted] in the ``behind`` (N,) frames: where the static box hides the object's lower
+    part, the object stands behind it (the camera looks along +y)."""
+    yaw_cos, yaw_sin = scene.static_rot[0, 0, 0].abs(), scene.static_rot[0, 1, 0].abs()
+    back = scene.static_pos[0, 1] + 0.5 * (yaw_cos * scene.static_size[0, 1] + yaw_sin * scene.static_size[0, 0])
+    short = (back - scene.object_pos[:, 1]).clamp_min(0.0).square()
+    return weights.penetration * (behind.to(short) * short).mean()
+
+
 _TOP_GRID = torch.tensor([[x, y, 0.5] for x in (-0.5, 0.0, 0.5) for y in (-0.5, 0.0, 0.5)])  # (9, 3) of a unit box
 
 

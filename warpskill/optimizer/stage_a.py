@@ -26,6 +26,7 @@ from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.scene import (
     SceneTrajectories,
     camera_height_prior,
+    in_front_of_back_penalty,
     off_static_penalty,
     static_in_object_penalty,
     perceptual_loss,
@@ -366,6 +367,7 @@ def initial_objective(
     weights: LossWeights,
     uncertain: torch.Tensor | None = None,
     supported: torch.Tensor | None = None,
+    behind: torch.Tensor | None = None,
 ) -> dict[str, torch.Tensor]:
     """Stage (a) loss terms: perceptual, contact distance, smoothness and resting priors.
 
@@ -380,6 +382,9 @@ def initial_objective(
             after the signal ends): neither the contact nor the resting priors apply there.
         supported: (N,) 1 in frames where the object stands on the first static box (the
             hypothesis "on the static"): its centre is asked to lie over the box's footprint.
+        behind: (N,) 1 in frames where the first static box hides the object's lower part
+            (:func:`warpskill.optimizer.inputs.cut_by_static`): its centre is asked to lie
+            behind the box's back.
     """
     tip_distance = box_signed_distance(scene.hand_pos, scene.object_pos, scene.object_rot, scene.object_size)
     c = contact.to(tip_distance.dtype)
@@ -418,4 +423,6 @@ def initial_objective(
     }
     if supported is not None:
         terms["on the static"] = off_static_penalty(scene, supported, weights)
+    if behind is not None:
+        terms["behind the static"] = in_front_of_back_penalty(scene, behind, weights)
     return terms

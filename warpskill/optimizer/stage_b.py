@@ -26,6 +26,7 @@ from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.scene import (
     SceneTrajectories,
     camera_height_prior,
+    in_front_of_back_penalty,
     off_static_penalty,
     static_in_object_penalty,
     perceptual_loss,
@@ -284,6 +285,7 @@ def physical_objective(
     object_visible: torch.Tensor,
     weights: LossWeights,
     supported: torch.Tensor | None = None,
+    behind: torch.Tensor | None = None,
 ) -> dict[str, torch.Tensor]:
     """Stage (b) loss terms: perceptual, velocity regularisation, contact, stability, and the
     placement "on the static" where it is the hypothesis.
@@ -297,6 +299,8 @@ def physical_objective(
         weights: loss weights.
         supported: (N,) 1 in frames where the object is to stand on the first static box
             (the placement whose physics is being tried); None: no such placement.
+        behind: (N,) 1 in frames where the first static box hides the object's lower part:
+            the object is asked to stand behind the box's back; None: no such frames.
 
     Returns:
         Named weighted terms; the loss is their sum.
@@ -322,4 +326,6 @@ def physical_objective(
     }
     if supported is not None:
         terms["on the static"] = off_static_penalty(result.scene, supported, weights)
+    if behind is not None:
+        terms["behind the static"] = in_front_of_back_penalty(result.scene, behind, weights)
     return terms
