@@ -8,9 +8,9 @@ import torch
 
 from warpskill.engine.distances import support_height
 from warpskill.optimizer.config import OptimizeConfig
-from warpskill.optimizer.inputs import rests_on_static
+from warpskill.optimizer.inputs import cut_by_static, rests_on_static
 from warpskill.optimizer.pipeline import optimize
-from warpskill.optimizer.scene import SceneTrajectories, static_in_object_penalty
+from warpskill.optimizer.scene import SceneTrajectories, in_front_of_back_penalty, static_in_object_penalty
 from warpskill.optimizer.stage_a import initial_guess
 from warpskill.optimizer.weights import LossWeights
 from warpskill.synthetic import make_demonstration
@@ -45,6 +45,29 @@ def test_an_object_whose_bottom_lies_inside_the_static_box_may_rest_on_it():
 ])
 def test_objects_behind_in_front_or_next_to_it_do_not(object_box, why):
     assert not rests_on_static(_masks(object_box), CONTACT).any(), why
+
+
+def test_an_object_cut_at_the_static_box_top_edge_stands_behind_it():
+    behind = _masks((12, 21, 24, 36))  # bottom row 21 at the static's top edge (20): its lower part hidden
+    assert cut_by_static(behind, CONTACT).tolist() == [False] * 12 + [True] * 8
+    assert not rests_on_static(behind, CONTACT).any()
+    for object_box in ((14, 26, 24, 36), (26, 38, 24, 36), (18, 28, 44, 56)):  # on top, in front, next to
+        assert not cut_by_static(_masks(object_box), CONTACT).any()
+
+
+def test_the_behind_prior_pushes_the_object_past_the_static_box_back_only_in_its_frames():
+    weights = LossWeights()
+    scene = _one_box_scene(0.25, [0.1, 0.1, 0.1])  # on top: its centre over the box, 15 cm short of the back
+    frames = torch.tensor([0.0, 1.0])
+    assert float(in_front_of_back_penalty(scene, frames, weights)) == pytest.approx(
+        weights.penetration * 0.15**2 / 2, rel=1e-5)
+    assert float(in_front_of_back_penalty(scene, torch.zeros(2), weights)) == 0.0
+    scene.object_pos.requires_grad_(True)
+    in_front_of_back_penalty(scene, frames, weights).backward()
+    assert scene.object_pos.grad[1, 1] < 0 and scene.object_pos.grad[0].abs().sum() == 0  # descent: farther back
+    behind = _one_box_scene(0.05, [0.1, 0.1, 0.1])
+    behind.object_pos[:, 1] = 0.3
+    assert float(in_front_of_back_penalty(behind, frames, weights)) == 0.0
 
 
 def test_no_static_box_or_no_release_gives_no_frames():
