@@ -183,15 +183,17 @@ def initial_guess(
 
         Where it is first seen the cuboid stands on the ground below its mask's bottom edge;
         later it stands there again (``on_ground``) or keeps that camera depth. While it is
-        ``carried``, a box much wider than where first seen says it has come closer (size
-        constancy; its bottom edge may be the image's border): its depth shrinks in
-        proportion, along the ray through the box's centre.
+        ``carried``, a box much wider than where first seen whole across says it has come
+        closer (size constancy; its bottom edge may be the image's border): its depth shrinks
+        in proportion, along the ray through the box's centre.
         """
         visible = np.flatnonzero(geom.visible)
         first = visible[0]
         u0, v0, u1, v1 = geom.box[first]
         _, rest_depth = ground_point(np.array([0.5 * (u0 + u1), v1]))
-        rest_width = u1 - u0
+        # Its width where first seen whole across (a box cut by a side border is no measure).
+        across = visible[(geom.box[visible, 0] > 0) & (geom.box[visible, 2] < w_img)]
+        rest_width = geom.box[across[0], 2] - geom.box[across[0], 0] if len(across) else np.inf
         pos = np.zeros((N, 3))
         sizes = []
         for k in visible:
