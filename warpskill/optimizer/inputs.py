@@ -227,14 +227,3 @@ def _after_release(masks: np.ndarray, contact: np.ndarray, min_frames: int, bott
     if placed.mean() >= share:
         out[after] = True
     return out
-    after = np.arange(on[-1] + 1, N)
-    obj, static = _boxes(masks[after, 1] > 0.5), _boxes(masks[after, 2] > 0.5)
-    if np.isnan(obj).any() or np.isnan(static).any():
-        return out
-    overlap = np.minimum(obj[:, 2], static[:, 2]) - np.maximum(obj[:, 0], static[:, 0])
-    narrower = np.minimum(obj[:, 2] - obj[:, 0], static[:, 2] - static[:, 0])
-    height = static[:, 3] - static[:, 1]
-    on_top = ((overlap >= 0.5 * narrower) & (obj[:, 3] > static[:, 1] + 0.1 * height) & (obj[:, 3] < static[:, 3]))
-    if on_top.all():
-        out[after] = True
-    return out

@@ -1,7 +1,7 @@
 """``warpskill.optimize``: a demonstration in, physically admissible trajectories out.
 
 Two stages, as in the paper: (a) a physics-free fit of per-frame poses (:mod:`.initialize`),
-from each of two hypotheses about the object's depth (the lower loss wins), gives a first
+from each hypothesis about the object's depth (the lower loss wins), gives a first
 camera and trajectories; (b) the physics stage (:mod:`.physical_scene`)
 optimises the initial states, the hand's velocity spline, the sizes and the camera through
 the Warp engine. Both use Adam (amsgrad) with a reduce-on-plateau schedule that returns to
@@ -145,16 +145,19 @@ def optimize_many(
 
     # Frames after the release where the object may stand on the static box (or behind it).
     # (At the masks' own resolution: a few pixels tell the object on top from the object behind.)
-    full = [demo.mask_stack(*demo.image_size) for demo in demos]
-    resting = [rests_on_static(masks, given.contact_signal) for masks, given in zip(full, inputs)]
     # ... and those where it stands behind it, its lower part hidden by the box's top edge.
-    behind = [cut_by_static(masks, given.contact_signal) for masks, given in zip(full, inputs)]
-    behind = [torch.as_tensor(b, dtype=torch.float32, device=device) if b.any() else None for b in behind]
-    del full
+    resting, behind = [], []
+    for demo, given in zip(demos, inputs):
+        rest = cut = np.zeros(demo.num_frames, dtype=bool)
+        if demo.num_static:
+            full = demo.mask_stack(*demo.image_size)
+            rest, cut = rests_on_static(full, given.contact_signal), cut_by_static(full, given.contact_signal)
+        resting.append(rest)
+        behind.append(torch.as_tensor(cut, dtype=torch.float32, device=device) if cut.any() else None)
 
     # Stage (a): every demonstration from each object-depth hypothesis; the lower loss wins,
     # except that a placement on the static box goes on to the physics beside the winner.
-    owners, candidates, hypotheses, supported = [], [], [], []
+    owners, candidates, supported = [], [], []
     for i, (demo, given) in enumerate(zip(demos, inputs)):
         for hypothesis in OBJECT_DEPTH_HYPOTHESES:
             on_static = hypothesis == "on the static"
@@ -164,7 +167,6 @@ def optimize_many(
                                   object_depth=hypothesis, resting=resting[i], hand_width=not given.hand_boxed,
                                   carried=given.contact_signal | held[i])
             owners.append(i)
-            hypotheses.append(hypothesis)
             supported.append(torch.as_tensor(resting[i], dtype=torch.float32, device=device) if on_static else None)
             candidates.append(InitialParameters(guess, knowns[i]).to(device))
 
