@@ -8,9 +8,14 @@ import torch
 
 from warpskill.engine.distances import support_height
 from warpskill.optimizer.config import OptimizeConfig
-from warpskill.optimizer.inputs import cut_by_static, rests_on_static
+from warpskill.optimizer.inputs import carried_into_view, cut_by_static, rests_on_static
 from warpskill.optimizer.pipeline import optimize
-from warpskill.optimizer.scene import SceneTrajectories, in_front_of_back_penalty, static_in_object_penalty
+from warpskill.optimizer.scene import (
+    SceneTrajectories,
+    ends_behind_static,
+    in_front_of_back_penalty,
+    static_in_object_penalty,
+)
 from warpskill.optimizer.stage_a import initial_guess
 from warpskill.optimizer.weights import LossWeights
 from warpskill.synthetic import make_demonstration
@@ -133,3 +138,42 @@ def test_a_static_box_inside_a_larger_object_is_penalised_and_one_under_it_is_no
     scene.object_pos.requires_grad_(True)
     static_in_object_penalty(scene, weights).backward()
     assert scene.object_pos.grad[:, 2].sum() < 0  # the gradient lifts the object off the static box
+
+
+def test_an_object_that_enters_through_the_border_is_held_from_the_first_frame():
+    masks = _masks((14, 26, 24, 36))
+    masks[:3, 1] = 0  # unseen until frame 3, where it enters at the top border with the hand
+    masks[3, 1] = 0
+    masks[3, 1, 0:6, 26:34] = 1
+    assert carried_into_view(masks, CONTACT).tolist() == [True] * 4 + [False] * (N - 4)
+    assert not (carried_into_view(masks, CONTACT) & CONTACT).any()
+
+
+@pytest.mark.parametrize("change, why", [
+    (lambda m: None, "on the table from the first frame"),
+    (lambda m: m[:3, 1].fill(0), "first seen inside the image: uncovered, not carried in"),
+])
+def test_objects_seen_first_inside_the_image_are_not_carried_in(change, why):
+    masks = _masks((14, 26, 24, 36))
+    change(masks)
+    assert not carried_into_view(masks, CONTACT).any(), why
+    assert not carried_into_view(_masks((14, 26, 24, 36)), np.zeros(N, dtype=bool)).any()
+
+
+def test_an_object_behind_the_static_box_is_told_from_one_on_it():
+    on_top = _one_box_scene(0.25, [0.1, 0.1, 0.1])  # static box 0.3 deep around y = 0
+    assert not ends_behind_static(on_top)
+    behind = _one_box_scene(0.05, [0.1, 0.1, 0.1])
+    behind.object_pos[-1, 1] = 0.2  # past the back at y = 0.15
+    assert ends_behind_static(behind)
+    turned = _one_box_scene(0.05, [0.1, 0.1, 0.1])
+    turned.static_rot = torch.tensor([[[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]])  # yaw 90 deg
+    turned.static_size = torch.tensor([[0.6, 0.3, 0.2]])  # 0.6 along x: after the turn, 0.6 deep
+    turned.object_pos[-1, 1] = 0.2
+    assert not ends_behind_static(turned)
+
+
+def test_the_best_simulation_is_the_best_fit_the_masks_do_not_contradict():
+    assert pipeline.best_simulation([2.6, 2.8], [True, False]) == 1
+    assert pipeline.best_simulation([2.6, 2.8], [False, False]) == 0
+    assert pipeline.best_simulation([2.6, 2.8], [True, True]) == 0

@@ -42,6 +42,7 @@ def working_inputs(demo: Demonstration, config: OptimizeConfig, device: torch.de
     h, w = demo.intrinsics.scaled(config.image_scale).image_size
     masks = torch.as_tensor(demo.mask_stack(h, w), device=device)
     contact_signal = majority_filter(demo.contact)
+    contact_signal = contact_signal | carried_into_view(masks.cpu().numpy(), contact_signal)
     hand_boxed = drawn_from_boxes(np.asarray(demo.hand_mask, dtype=bool))
     boxed = torch.zeros(masks.shape[1], dtype=torch.bool, device=device)
     boxed[0] = hand_boxed
@@ -121,6 +122,32 @@ def _boxes(masks: np.ndarray) -> np.ndarray:
         rows, cols = np.nonzero(mask)
         if len(rows):
             out[k] = cols.min(), rows.min(), cols.max(), rows.max()
+    return out
+
+
+def carried_into_view(masks: np.ndarray, contact: np.ndarray) -> np.ndarray:
+    """(N,) bool: the frames before the contact signal's onset in which the object is already held.
+
+    An object that first appears at the image border after the video's first frame entered
+    the view, and objects do not move by themselves: the hand brought it in, holding it from
+    the first frame, even when annotators start the contact only once the hand is in view
+    (or once the object is put down). These are the frames before the onset; elsewhere
+    nothing is returned.
+
+    Args:
+        masks: (N, 2 + K, h, w) masks in [0, 1]: hand, object, statics.
+        contact: (N,) bool.
+    """
+    N = len(contact)
+    out = np.zeros(N, dtype=bool)
+    on = np.flatnonzero(contact)
+    seen = np.flatnonzero((masks[:, 1] > 0.5).reshape(N, -1).any(-1))
+    if len(on) == 0 or len(seen) == 0 or seen[0] == 0:
+        return out
+    h, w = masks.shape[-2:]
+    u0, v0, u1, v1 = _boxes(masks[seen[0] : seen[0] + 1, 1] > 0.5)[0]
+    if u0 <= 0 or v0 <= 0 or u1 >= w - 1 or v1 >= h - 1:
+        out[: on[0]] = True
     return out
 
 

@@ -28,7 +28,7 @@ from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.inputs import cut_by_static, held_after_contact, rests_on_static, working_inputs
 from warpskill.optimizer.known import check_known
 from warpskill.optimizer.loop import minimise
-from warpskill.optimizer.scene import SceneTrajectories, perceptual_loss
+from warpskill.optimizer.scene import SceneTrajectories, ends_behind_static, perceptual_loss
 from warpskill.optimizer.stage_a import (
     OBJECT_DEPTH_HYPOTHESES,
     InitialParameters,
@@ -247,11 +247,23 @@ def optimize_many(
                for b, masks in zip(everything, rendered)]
     reconstructions = []
     for i, demo in enumerate(demos):
-        b = min((b for b in everything if physics_owners[b] == i), key=lambda b: fit[b])
+        own = [b for b in everything if physics_owners[b] == i]
+        # Where the masks show the object's bottom inside the static's box after the release,
+        # a simulation that ends with the object behind the box contradicts them: the
+        # renderer draws the object whole, but the box would hide it there.
+        contradicted = [bool(resting[i].any()) and ends_behind_static(results[b].scene) for b in own]
+        b = own[best_simulation([fit[b] for b in own], contradicted)]
         result = results[b]
         reconstructions.append(_reconstruction(demo, result.scene, result.rollout.grasp, result.rollout.grasped,
                                                losses[b]))
     return reconstructions
+
+
+def best_simulation(fits: Sequence[float], contradicted: Sequence[bool]) -> int:
+    """Index of the simulation with the lowest perceptual loss among those the masks do not
+    contradict (among all when every one is)."""
+    pool = [k for k in range(len(fits)) if not contradicted[k]] or range(len(fits))
+    return min(pool, key=lambda k: fits[k])
 
 
 def _reconstruction(

@@ -111,10 +111,19 @@ def in_front_of_back_penalty(scene: SceneTrajectories, behind: torch.Tensor, wei
     """How far the object's centre lies in front of the first static box's back [m, squared,
     weighted] in the ``behind`` (N,) frames: where the static box hides the object's lower
     part, the object stands behind it (the camera looks along +y)."""
-    yaw_cos, yaw_sin = scene.static_rot[0, 0, 0].abs(), scene.static_rot[0, 1, 0].abs()
-    back = scene.static_pos[0, 1] + 0.5 * (yaw_cos * scene.static_size[0, 1] + yaw_sin * scene.static_size[0, 0])
-    short = (back - scene.object_pos[:, 1]).clamp_min(0.0).square()
+    short = (static_back(scene) - scene.object_pos[:, 1]).clamp_min(0.0).square()
     return weights.penetration * (behind.to(short) * short).mean()
+
+
+def ends_behind_static(scene: SceneTrajectories) -> bool:
+    """Whether the object's last centre lies behind the first static box's back (farther from the camera)."""
+    return bool(scene.object_pos[-1, 1] > static_back(scene))
+
+
+def static_back(scene: SceneTrajectories) -> torch.Tensor:
+    """The depth y [m] (0-d) of the first static box's back, the face farthest from the camera."""
+    yaw_cos, yaw_sin = scene.static_rot[0, 0, 0].abs(), scene.static_rot[0, 1, 0].abs()
+    return scene.static_pos[0, 1] + 0.5 * (yaw_cos * scene.static_size[0, 1] + yaw_sin * scene.static_size[0, 0])
 
 
 _TOP_GRID = torch.tensor([[x, y, 0.5] for x in (-0.5, 0.0, 0.5) for y in (-0.5, 0.0, 0.5)])  # (9, 3) of a unit box
