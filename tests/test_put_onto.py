@@ -41,6 +41,10 @@ def _masks(object_box, static_box=STATIC):
 def test_an_object_whose_bottom_lies_inside_the_static_box_may_rest_on_it():
     on_top = _masks((14, 26, 24, 36))  # bottom row 26: inside the static box's rows 20-34
     assert rests_on_static(on_top, CONTACT).tolist() == [False] * 12 + [True] * 8
+    on_top[15, 1, 38:40, 0:2] = 1  # a segmenter's stray blob stretches one frame's box below the static's
+    assert rests_on_static(on_top, CONTACT).tolist() == [False] * 12 + [True] * 8
+    on_top[16:18, 1, 38:40, 0:2] = 1  # in three of the eight frames: no longer most of them
+    assert not rests_on_static(on_top, CONTACT).any()
 
 
 @pytest.mark.parametrize("object_box, why", [
