@@ -5,7 +5,8 @@ import pytest
 import torch
 
 from warpskill.data.box_annotations import box_masks
-from warpskill.optimizer.inputs import drawn_from_boxes
+from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.inputs import drawn_from_boxes, working_inputs
 from warpskill.optimizer.losses import MaskTargets, box_loss, diou_loss
 from warpskill.optimizer.scene import camera_height_prior
 from warpskill.optimizer.stage_a import initial_guess
@@ -41,6 +42,29 @@ def test_segmentation_masks_are_not_taken_for_boxes():
 def test_box_demonstrations_are_recognised():
     demo = make_demonstration("pick_up", seed=1, image_size=(60, 107), duration=2.0, input="boxes")
     assert drawn_from_boxes(demo.hand_mask.astype(bool))
+
+
+@pytest.mark.parametrize("input, boxed", [("boxes", True), ("masks", False)])
+def test_every_channel_drawn_from_boxes_is_compared_by_its_box(input, boxed):
+    demo = make_demonstration("put_onto", seed=0, duration=2.0, input=input)
+    given = working_inputs(demo, OptimizeConfig(), torch.device("cpu"))
+    assert given.targets.boxed.tolist() == [boxed] * 3
+    assert given.hand_boxed == boxed
+
+
+def test_a_cuboid_silhouette_fills_its_box_by_the_box_loss_but_not_by_the_ellipse_iou():
+    ellipse = torch.as_tensor(box_masks(np.array([[8.0, 6.0, 56.0, 42.0]]), (H, W))[0], dtype=torch.float64)
+    targets = MaskTargets(ellipse[None])
+
+    def rectangle(margin: int) -> torch.Tensor:  # a front-on cuboid's silhouette, ``margin`` px inside the box
+        out = torch.zeros(H, W, dtype=torch.float64)
+        out[6 + margin : 42 - margin, 8 + margin : 56 - margin] = 1
+        return out[None]
+
+    by_box = [float(box_loss(rectangle(m), targets)[0]) for m in range(6)]
+    by_area = [float(diou_loss(rectangle(m), targets)[0][0]) for m in range(6)]
+    assert int(np.argmin(by_box)) == 0  # the whole box
+    assert int(np.argmin(by_area)) > 0  # a smaller cuboid: the bias the box loss removes
 
 
 def test_a_thin_band_filling_a_box_matches_its_ellipse_by_box_not_by_iou():

@@ -20,7 +20,8 @@ class WorkingInputs:
     Attributes:
         intrinsics: the camera at the working resolution.
         masks: (N, 2 + K, h, w) area-averaged masks: hand, object, statics.
-        targets: ``masks`` with their moments, for the dIoU.
+        targets: ``masks`` with their moments, for the dIoU; the channels drawn from boxes
+            (:func:`drawn_from_boxes`) compare boxes.
         contact_signal: (N,) bool, the majority-filtered contact.
         contact: (N,) the same as floats on the device.
         object_visible: (N,) 1 where the object's mask is not empty.
@@ -43,9 +44,11 @@ def working_inputs(demo: Demonstration, config: OptimizeConfig, device: torch.de
     masks = torch.as_tensor(demo.mask_stack(h, w), device=device)
     contact_signal = majority_filter(demo.contact)
     contact_signal = contact_signal | carried_into_view(masks.cpu().numpy(), contact_signal)
-    hand_boxed = drawn_from_boxes(np.asarray(demo.hand_mask, dtype=bool))
-    boxed = torch.zeros(masks.shape[1], dtype=torch.bool, device=device)
-    boxed[0] = hand_boxed
+    full = demo.mask_stack(*demo.image_size) > 0.5
+    # Each channel drawn from boxes is compared by its box: an ellipse in an object's box
+    # would make the cuboid that fills it by area smaller (and lower) than the object.
+    boxed = torch.tensor([drawn_from_boxes(full[:, c]) for c in range(full.shape[1])], device=device)
+    hand_boxed = bool(boxed[0])
     absent = torch.as_tensor(out_of_sight(masks.cpu().numpy()), device=device)
     return WorkingInputs(
         intrinsics=demo.intrinsics.resized(h, w),
