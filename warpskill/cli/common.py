@@ -14,7 +14,7 @@ __all__ = ["add_optimise_options", "add_placement_options", "installed", "placem
 def add_optimise_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--device", default=None, help="cpu (default) or cuda")
     parser.add_argument("--iterations", type=int, default=None, help="physics-stage iterations")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="Torch seed (results are deterministic per seed and device)")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.add_argument("--known", nargs="+", default=None, metavar="NAME=METRES",
                         help="lengths known in advance, which fix the scene's scale, e.g. object_height=0.10 "
