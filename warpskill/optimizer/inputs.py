@@ -20,8 +20,8 @@ class WorkingInputs:
     Attributes:
         intrinsics: the camera at the working resolution.
         masks: (N, 2 + K, h, w) area-averaged masks: hand, object, statics.
-        targets: ``masks`` with their moments, for the dIoU; the channels drawn from boxes
-            (:func:`drawn_from_boxes`) compare boxes.
+        targets: ``masks`` with their moments, for the dIoU; the hand and the object, where
+            drawn from boxes (:func:`drawn_from_boxes`), compare boxes.
         contact_signal: (N,) bool, the majority-filtered contact.
         contact: (N,) the same as floats on the device.
         object_visible: (N,) 1 where the object's mask is not empty.
@@ -44,10 +44,13 @@ def working_inputs(demo: Demonstration, config: OptimizeConfig, device: torch.de
     masks = torch.as_tensor(demo.mask_stack(h, w), device=device)
     contact_signal = majority_filter(demo.contact)
     contact_signal = contact_signal | carried_into_view(masks.cpu().numpy(), contact_signal)
-    full = demo.mask_stack(*demo.image_size) > 0.5
-    # Each channel drawn from boxes is compared by its box: an ellipse in an object's box
-    # would make the cuboid that fills it by area smaller (and lower) than the object.
-    boxed = torch.tensor([drawn_from_boxes(full[:, c]) for c in range(full.shape[1])], device=device)
+    # The hand and the object drawn from boxes are compared by their boxes: a cuboid that
+    # fills the ellipse in an object's box by area is smaller (and lower) than the object.
+    # Static boxes keep the area fit: annotators' static boxes are partly amodal (they keep
+    # what the object covers), and comparing their boxes measured worse (README).
+    moving = demo.mask_stack(*demo.image_size)[:, :2] > 0.5
+    boxed = torch.zeros(masks.shape[1], dtype=torch.bool, device=device)
+    boxed[:2] = torch.tensor([drawn_from_boxes(moving[:, 0]), drawn_from_boxes(moving[:, 1])])
     hand_boxed = bool(boxed[0])
     absent = torch.as_tensor(out_of_sight(masks.cpu().numpy()), device=device)
     return WorkingInputs(
