@@ -48,9 +48,8 @@ def working_inputs(demo: Demonstration, config: OptimizeConfig, device: torch.de
     # fills the ellipse in an object's box by area is smaller (and lower) than the object.
     # Static boxes keep the area fit: annotators' static boxes are partly amodal (they keep
     # what the object covers), and comparing their boxes measured worse (README).
-    moving = demo.mask_stack(*demo.image_size)[:, :2] > 0.5
     boxed = torch.zeros(masks.shape[1], dtype=torch.bool, device=device)
-    boxed[:2] = torch.tensor([drawn_from_boxes(moving[:, 0]), drawn_from_boxes(moving[:, 1])])
+    boxed[:2] = torch.tensor([drawn_from_boxes(np.asarray(m, dtype=bool)) for m in (demo.hand_mask, demo.object_mask)])
     hand_boxed = bool(boxed[0])
     absent = torch.as_tensor(out_of_sight(masks.cpu().numpy()), device=device)
     return WorkingInputs(
@@ -233,8 +232,9 @@ def cut_by_static(masks: np.ndarray, contact: np.ndarray, *, min_frames: int = 2
     """(N,) bool: frames after the release in which the object is cut by the first static box's top edge.
 
     As :func:`rests_on_static`, but the object's bottom row lies at the static box's top
-    edge (from a quarter of the static's height above it to a tenth below it): the static box hides the object's lower part, so the object stands
-    behind it, not on it (on top, its bottom would show inside the static's box).
+    edge (from a quarter of the static's height above it to a tenth below it): the static box
+    hides the object's lower part, so the object stands behind it, not on it (on top, its
+    bottom would show inside the static's box).
     """
     return _after_release(masks, contact, min_frames,
                           lambda bottom, top, height: (bottom >= top - 0.25 * height) & (bottom <= top + 0.1 * height),

@@ -99,6 +99,24 @@ def camera_height_prior(scene: SceneTrajectories, weights: LossWeights) -> torch
     return weights.camera_height * torch.log(scene.camera_height / weights.typical_camera_height).square()
 
 
+def scene_priors(
+    scene: SceneTrajectories, weights: LossWeights, supported: torch.Tensor | None = None,
+    behind: torch.Tensor | None = None,
+) -> dict[str, torch.Tensor]:
+    """The terms both stages add on the scene itself: the camera-height prior, the static boxes
+    held out of the object and, where given, the placements "on the static" (``supported``,
+    (N,)) and "behind the static" (``behind``, (N,))."""
+    terms = {
+        "camera height": camera_height_prior(scene, weights),
+        "static in object": static_in_object_penalty(scene, weights),
+    }
+    if supported is not None:
+        terms["on the static"] = off_static_penalty(scene, supported, weights)
+    if behind is not None:
+        terms["behind the static"] = in_front_of_back_penalty(scene, behind, weights)
+    return terms
+
+
 def off_static_penalty(scene: SceneTrajectories, supported: torch.Tensor, weights: LossWeights) -> torch.Tensor:
     """How far the object's centre lies outside the first static box's footprint in the
     ``supported`` (N,) frames (squared [m^2], weighted): the placement "on the static"."""

@@ -25,13 +25,10 @@ from warpskill.optimizer.known import measured, pin_sizes
 from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.scene import (
     SceneTrajectories,
-    camera_height_prior,
-    in_front_of_back_penalty,
-    off_static_penalty,
-    static_in_object_penalty,
     perceptual_loss,
     positive,
     positive_inverse,
+    scene_priors,
     static_poses,
 )
 from warpskill.optimizer.weights import LossWeights
@@ -221,8 +218,8 @@ def initial_guess(
         static_pos.append(pos[np.flatnonzero(visible)[0]])
         static_size.append(size)
     if on_static:
-        object_pos = _placed_on_static(object_pos, object_size, object_geom, np.asarray(contact, bool), resting, static_pos[0], static_size[0],
-                                       centre, K, R_wc)
+        object_pos = _placed_on_static(object_pos, object_size, object_geom, np.asarray(contact, bool), resting,
+                                       static_pos[0], static_size[0], centre, K, R_wc)
 
     hand_pos = np.zeros((N, 3))
     hand_axis = np.zeros((N, 3))
@@ -403,7 +400,7 @@ def initial_objective(
     low = lowest_corner_height(scene.object_pos, scene.object_rot, scene.object_size)
     below = (-low).clamp_min(0.0).square().mean() + (-scene.hand_pos[:, 2]).clamp_min(0.0).square().mean()
     support = support_height(scene.object_pos, scene.static_pos, scene.static_rot, scene.static_size)
-    terms = {
+    return {
         "perceptual": perceptual_loss(rendered, targets, weights),
         "contact distance": weights.contact_distance
         * (c * (tip_distance + weights.grasp_margin).clamp_min(0.0) ** 2).mean(),
@@ -419,12 +416,4 @@ def initial_objective(
         + weights.penetration * (free * (low - support).square()).mean(),
         # ... and nothing goes through the ground.
         "penetration": weights.penetration * below,
-
-        "camera height": camera_height_prior(scene, weights),
-        "static in object": static_in_object_penalty(scene, weights),
-    }
-    if supported is not None:
-        terms["on the static"] = off_static_penalty(scene, supported, weights)
-    if behind is not None:
-        terms["behind the static"] = in_front_of_back_penalty(scene, behind, weights)
-    return terms
+    } | scene_priors(scene, weights, supported, behind)

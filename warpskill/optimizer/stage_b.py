@@ -25,13 +25,10 @@ from warpskill.optimizer.known import pin_sizes
 from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.scene import (
     SceneTrajectories,
-    camera_height_prior,
-    in_front_of_back_penalty,
-    off_static_penalty,
-    static_in_object_penalty,
     perceptual_loss,
     positive,
     positive_inverse,
+    scene_priors,
     static_poses,
 )
 from warpskill.optimizer.spline import natural_cubic_basis
@@ -308,7 +305,7 @@ def physical_objective(
     rollout = result.rollout
     object_speed = rollout.object_vel.square().sum(-1) + rollout.object_ang_vel.square().sum(-1)
     margin = weights.grasp_margin
-    terms = {
+    return {
         "perceptual": perceptual_loss(rendered, targets, weights),
         "hand velocity": weights.hand_velocity * result.hand_speed.mean(),
         "hidden object velocity": weights.invisible_object_velocity * ((1 - object_visible) * object_speed).mean(),
@@ -320,12 +317,4 @@ def physical_objective(
             + ((1 - contact) * (rollout.grasp + margin).clamp_min(0.0) ** 2).mean()
         ),
         "stability": weights.stability * result.still_velocity.mean(),
-
-        "camera height": camera_height_prior(result.scene, weights),
-        "static in object": static_in_object_penalty(result.scene, weights),
-    }
-    if supported is not None:
-        terms["on the static"] = off_static_penalty(result.scene, supported, weights)
-    if behind is not None:
-        terms["behind the static"] = in_front_of_back_penalty(result.scene, behind, weights)
-    return terms
+    } | scene_priors(result.scene, weights, supported, behind)
