@@ -126,3 +126,21 @@ def test_a_non_finite_loss_names_the_stage_scene_and_iteration():
     with pytest.raises(FloatingPointError, match=r"bowls \(scene 1\): the loss became nan at iteration 2"):
         minimise(bowls, objective, iterations=10, learning_rate=0.05, config=OptimizeConfig(), progress=False,
                   label="bowls", store=Checkpoint(None, ""))
+
+
+def test_minimise_stops_a_rival_far_behind_at_a_rung_and_lets_near_ties_go_on():
+    # Bowls 0 and 1 are rivals; 1 starts far from its minimum, so its loss is far above 0's
+    # at the rung. Bowl 2 starts as far but has no rivals. Bowls 3 and 4 tie within the margin.
+    centres = ([0.1, 0.0, 0.0], [3.0, 3.0, 3.0], [3.0, 3.0, 3.0], [0.5, 0.0, 0.0], [0.0, 0.5, 0.0])
+    bowls = [_Bowl(c) for c in centres]
+    seen = []
+
+    def objective(live):
+        seen.append(list(live))
+        return [bowls[b].loss() for b in live]
+
+    minimise(bowls, objective, iterations=30, learning_rate=0.05, config=OptimizeConfig(), progress=False,
+              label="bowls", store=Checkpoint(None, ""), rivals=["a", "a", None, "b", "b"], rungs=[(5, 0.1)])
+    assert all(1 in live for live in seen[:5])
+    assert all(1 not in live and {0, 2, 3, 4} <= set(live) for live in seen[5:])
+    assert len(seen) == 30

@@ -22,12 +22,19 @@ def minimise(
     progress: bool,
     label: str,
     store: "Checkpoint",
+    rivals: Sequence[object | None] | None = None,
+    rungs: Sequence[tuple[int, float]] = (),
 ) -> list[float]:
     """Adam (amsgrad) with reduce-on-plateau, per module; leaves each module at its best parameters.
 
     ``objective(live)`` returns the named loss terms of the modules ``live`` (indices), whose
     sums are minimised. Each module has its own learning rate and schedule (its own Adam
     parameter group) and stops once its rate has decayed; the others go on.
+
+    ``rivals`` gives each module a group (None: none) and ``rungs`` a list of (iteration,
+    margin): after that many iterations, a module whose best loss is more than ``margin``
+    (relative) above the best of its group stops where it is (successive halving: a
+    hypothesis far behind early seldom wins late; near ties go on to a later rung).
 
     Returns:
         The best loss each module reached.
@@ -83,6 +90,10 @@ def minimise(
                 for parameter in modules[b].parameters():
                     optimizer.state.pop(parameter, None)
         iteration += 1
+        for rung, margin in rungs if rivals is not None else ():
+            if iteration == rung:
+                for b in _behind_rivals(rivals, best_loss, margin):
+                    groups[b]["lr"] = 0.0
         bar.update(1)
         bar.set_postfix(loss=f"{sum(values):.4f}", best=f"{sum(best_loss):.4f}", lr=f"{groups[active[0]]['lr']:.1e}",
                         **({"running": f"{len(active)}/{count}"} if count > 1 else {}))
@@ -98,6 +109,16 @@ def minimise(
         module.load_state_dict(state)
     save(iterations)
     return best_loss
+
+
+def _behind_rivals(rivals: Sequence[object | None], best_loss: Sequence[float], margin: float) -> list[int]:
+    """The modules whose loss is more than ``margin`` (relative) above the lowest of their group."""
+    lowest: dict[object, float] = {}
+    for group, loss in zip(rivals, best_loss):
+        if group is not None:
+            lowest[group] = min(loss, lowest.get(group, float("inf")))
+    return [b for b, (group, loss) in enumerate(zip(rivals, best_loss))
+            if group is not None and loss > (1.0 + margin) * lowest[group]]
 
 
 class Plateau:

@@ -180,9 +180,13 @@ def optimize_many(
             for j, scene, masks in zip(live, scenes, rendered)
         ]
 
+    # The depth hypotheses of a demonstration are rivals: those clearly behind stop early
+    # (``config.rival_rungs``); the placement on the static box is no rival: it always goes
+    # on to the physics.
+    rivals = [owners[j] if supported[j] is None else None for j in range(len(candidates))]
     losses = minimise(candidates, stage_a, iterations=config.init_iterations,
                        learning_rate=config.init_learning_rate, config=config, progress=progress,
-                       label="initialisation", store=store)
+                       label="initialisation", store=store, rivals=rivals, rungs=config.rival_rungs)
     fits, stage_a_losses, placements = [], [], []
     for i in range(len(demos)):
         j = min((j for j in range(len(owners)) if owners[j] == i and supported[j] is None), key=lambda j: losses[j])
