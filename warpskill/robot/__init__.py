@@ -19,6 +19,7 @@ from warpskill.lazy import lazy_exports
 
 _EXPORTS = {
     "retarget": "retargeting",
+    "robot_reconstruction": "retargeting",
     "RobotPlan": "plan",
     "PlanError": "plan",
     "Placement": "model",

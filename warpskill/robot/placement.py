@@ -27,7 +27,7 @@ from warpskill.contract.reconstruction import Reconstruction
 from warpskill.robot.model import Placement, make_scene
 from warpskill.robot.planner import COLLISION_MARGIN, Planner
 
-__all__ = ["OFFSETS_X", "OFFSETS_Y", "YAWS", "candidate_placements", "rank_placements"]
+__all__ = ["OFFSETS_X", "OFFSETS_Y", "YAWS", "candidate_placements", "rank_placements", "reach_excess"]
 
 OFFSETS_X = (0.5, 0.42, 0.58, 0.34, 0.66)  # [m] scene centre ahead of the base
 OFFSETS_Y = (0.0, -0.08, 0.08, -0.16, 0.16)  # [m] scene centre to the base's left
@@ -77,8 +77,12 @@ def _base_blocked(recon: Reconstruction, base: np.ndarray) -> bool:
     return False
 
 
-def _proxy(base: np.ndarray, keys: list[list[np.ndarray]]) -> float:
-    """Reach excess [m] of the key poses from ``base``, the best grasp pose's (the geometric proxy)."""
+def reach_excess(base: np.ndarray, keys: list[list[np.ndarray]]) -> float:
+    """Reach excess [m] of the key poses (4, 4) from ``base``, the best grasp pose's (the geometric proxy).
+
+    0 where some grasp pose's keys all lie within the arm's reach (:data:`REACH` from the
+    shoulder, outside the :data:`COLUMN` above the base); more than 0 for none.
+    """
     shoulder = base[:3, 3] + SHOULDER * base[:3, 2]
     best = math.inf
     for pose_keys in keys:
@@ -131,7 +135,7 @@ def rank_placements(recon: Reconstruction, keys: list[list[np.ndarray]], default
         base = make_scene(recon, p).base
         if _base_blocked(recon, base):
             continue
-        proxies.append((_proxy(base, keys) + DEVIATION * _deviation(p, default), p))
+        proxies.append((reach_excess(base, keys) + DEVIATION * _deviation(p, default), p))
     proxies.sort(key=lambda item: item[0])
     scored = [(cost0, default)]
     for _, p in proxies[:IK_CANDIDATES]:

@@ -18,7 +18,7 @@ Keys of the plan ``.npz`` (units: seconds, radians, metres):
 | ``action`` | () str | the reconstruction's action |
 | ``offset``, ``yaw`` | (2,), () | the placement: scene centre in the base frame [m], the base's heading [rad] |
 | ``placement`` | () str | ``auto`` (searched) or ``given`` |
-| ``object_size``, ``object_pos``, ``object_rot`` | (3,), (F, 3), (F, 3, 3) | the object the robot handles: its size, centre path and (upright) rotations (reconstruction frames) |
+| ``object_size``, ``object_pos``, ``object_rot`` | (3,), (F, 3), (F, 3, 3) | the object the robot handles: its size, centre path and (upright) rotations (reconstruction frames); one carried into view rests until the robot takes it |
 | ``static_size``, ``static_pos`` | (K, 3), (K, 3) | the static cuboids the robot works with |
 | ``note`` | () str | what was changed for the robot (a substituted object), or empty |
 
@@ -83,7 +83,7 @@ class RobotPlan:
         return float(self.t[1] - self.t[0])
 
     def scene(self, recon):
-        """``recon`` with the cuboids the plan was made for (the sizes and heights it handles)."""
+        """``recon`` with the cuboids the plan was made for (the sizes and poses it handles, the object's start too)."""
         if self.object_size is None:
             return recon
         changes = {name: np.asarray(getattr(self, name), float) for name in

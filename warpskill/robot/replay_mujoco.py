@@ -50,7 +50,7 @@ def build_model(plan: RobotPlan, recon: Reconstruction):
     Its options, contacts, drives and colours, and the video's lights, backdrop and
     offscreen frame size, are those of :func:`~warpskill.robot.scene_config.load_scene_config`.
     """
-    recon = plan.scene(recon)  # the cuboids as the plan handles them (sizes, heights)
+    recon = plan.scene(recon)  # the cuboids as the plan handles them (sizes, poses: the object's start too)
     import mujoco
 
     config = load_scene_config()

@@ -125,7 +125,7 @@ def build_model(plan: RobotPlan, recon: Reconstruction, *, device: str | None = 
         ``joint_target_q`` indices), ``tcp_body``, ``object_body``, ``object_shape``,
         ``finger_bodies``, ``robot_bodies``.
     """
-    recon = plan.scene(recon)  # the cuboids as the plan handles them (sizes, heights)
+    recon = plan.scene(recon)  # the cuboids as the plan handles them (sizes, poses: the object's start too)
     import newton
 
     config = load_scene_config()

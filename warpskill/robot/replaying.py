@@ -31,7 +31,8 @@ def replay(plan: RobotPlan, recon: Reconstruction, engine: str = "mujoco", *, de
     Args:
         plan: from :func:`warpskill.robot.retarget` (or :meth:`RobotPlan.load`).
         recon: the reconstruction the plan was made for (statics, action); the cuboids'
-            sizes and heights are the plan's (:meth:`RobotPlan.scene`), as ``replay.npz`` records.
+            sizes and poses, the object's start included, are the plan's
+            (:meth:`RobotPlan.scene`), as ``replay.npz`` records.
         engine: ``"mujoco"`` (default) or ``"newton"``.
         device: Warp device for Newton (``"cpu"``, ``"cuda"``; default: Warp's default).
 
@@ -40,7 +41,7 @@ def replay(plan: RobotPlan, recon: Reconstruction, engine: str = "mujoco", *, de
     """
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; valid engines: {', '.join(ENGINES)}")
-    recon = plan.scene(recon)  # the cuboids the plan was made for (sizes, heights): simulated and recorded
+    recon = plan.scene(recon)  # the cuboids the plan was made for (sizes, poses, start): simulated and recorded
     fps = float(recon.fps)
     times = np.arange(plan.start_time, plan.t[-1] + 1e-9, 1.0 / fps)
     started = time.perf_counter()

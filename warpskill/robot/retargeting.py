@@ -2,8 +2,11 @@
 
 :func:`retarget`:
 
-1. sizes (:mod:`warpskill.robot.sizes`): the robot's own object sizes, or a substitute for a
-   grasped cuboid wider than the gripper on every face (``keep_size`` refuses instead);
+1. the robot's reconstruction (:func:`robot_reconstruction`): the robot's own object sizes
+   (:mod:`warpskill.robot.sizes`), or a substitute for a grasped cuboid wider than the
+   gripper on every face (``keep_size`` refuses instead); an object held from the first
+   frame (carried into view: its start is unknown) starts resting below the first frame
+   from which the robot can do the task, the grasp onset;
 2. grasp poses (:mod:`warpskill.robot.grasps`) ranked against the demonstrated approach;
 3. placement (:mod:`warpskill.robot.placement`): with ``placement="auto"`` (the default)
    a deterministic search of the base pose scored on the task's key poses; a given
@@ -29,10 +32,10 @@ import numpy as np
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.robot.grasps import FIT_MARGIN, GraspPose, candidate_poses, rank_poses
 from warpskill.robot.model import HOME_Q, MAX_OPENING, Placement, Scene, make_scene
-from warpskill.robot.placement import rank_placements
+from warpskill.robot.placement import rank_placements, reach_excess
 from warpskill.robot.plan import PlanError, RobotPlan
 from warpskill.robot.planner import DT, Planner
-from warpskill.robot.sizes import fit_sizes
+from warpskill.robot.sizes import fit_sizes, rest_until
 from warpskill.robot.targets import (
     PREGRASP,
     key_targets,
@@ -43,7 +46,7 @@ from warpskill.robot.targets import (
     translate,
 )
 
-__all__ = ["AUTO", "retarget"]
+__all__ = ["AUTO", "retarget", "robot_reconstruction"]
 
 AUTO = "auto"
 """``placement=AUTO``: search where the robot stands (:func:`warpskill.robot.placement.rank_placements`)."""
@@ -63,6 +66,7 @@ SLOWDOWNS = (1.0, 1.7, 3.0)  # the demonstration is replayed this many times slo
 PLANNED_POSES = 4  # feasible grasp poses planned in full per placement
 SCORED_POSES = 2  # grasp poses whose key poses score a placement
 FULL_PLANS = 3  # placements planned in full (auto), best first
+CARRY_SPEED = 1.7  # [m/s] fastest demonstrated object the robot takes over (the Panda's Cartesian speed limit)
 
 
 def retarget(recon: Reconstruction, *, placement: Placement | str | None = AUTO, object_size=None,
@@ -88,11 +92,12 @@ def retarget(recon: Reconstruction, *, placement: Placement | str | None = AUTO,
         ValueError: sizes of the wrong shape or count.
     """
     started = time.perf_counter()
-    recon, note = fit_sizes(recon, object_size=object_size, static_sizes=static_sizes, keep_size=keep_size)
-    task = _task(recon)
     auto = placement is None or (isinstance(placement, str) and placement == AUTO)
     if isinstance(placement, str) and not auto:
         raise ValueError(f"placement must be 'auto' or a Placement, got {placement!r}")
+    recon, note = robot_reconstruction(recon, placement=Placement() if auto else placement, object_size=object_size,
+                                       static_sizes=static_sizes, keep_size=keep_size)
+    task = _task(recon)
     if auto:
         scene0 = make_scene(recon)
         keys = [key_targets(recon, scene0, pose, task["k_on"], task["k_off"]) for _, _, pose in
@@ -119,6 +124,75 @@ def retarget(recon: Reconstruction, *, placement: Placement | str | None = AUTO,
         plan.planning_time = time.perf_counter() - started
         return plan
     raise errors[0]
+
+
+def robot_reconstruction(recon: Reconstruction, *, placement: Placement = Placement(), object_size=None,
+                         static_sizes=None, keep_size: bool = False) -> tuple[Reconstruction, str]:
+    """The reconstruction as the robot performs it, and :func:`~warpskill.robot.sizes.fit_sizes`' note.
+
+    The cuboids get the robot's sizes (:func:`~warpskill.robot.sizes.fit_sizes`). An object
+    held (pushed, pulled: touched) from the first frame was carried into view, or moved
+    before it: its start is unknown. The robot stands at ``placement`` for the part of the
+    task it does in any case (the object taken at the last held frame) and takes the object
+    at the first held frame k from which it can do the task: the object, resting below its
+    frame-k centre, is within reach (static IK reaches a ranked grasp pose and its
+    pre-grasp, the pose's other key poses lie within the arm's reach) and the demonstration
+    moves it no faster than :data:`CARRY_SPEED` to the next frame (a faster object is still
+    being swung into view). The object rests there until k
+    (:func:`~warpskill.robot.sizes.rest_until`); below the first held frame where no frame
+    qualifies. This is the one place that decides the object's start: the plan carries the
+    result (:meth:`RobotPlan.scene`), which the replays and the video simulate.
+
+    Args:
+        recon: the reconstruction.
+        placement: where the robot stands (for an object held from the first frame).
+        object_size, static_sizes, keep_size: as for :func:`retarget`.
+
+    Raises:
+        ValueError: sizes of the wrong shape or count.
+    """
+    fitted, note = fit_sizes(recon, object_size=object_size, static_sizes=static_sizes, keep_size=keep_size)
+    if not fitted.grasped[0] > 0.5:
+        return fitted, note
+    held = np.flatnonzero(fitted.grasped > 0.5)
+    base = make_scene(rest_until(fitted, int(held[-1])), placement).base
+    speed = np.append(np.linalg.norm(np.diff(recon.object_pos, axis=0), axis=1) * float(recon.fps), 0.0)  # (F,)
+    for k in held[speed[held] <= CARRY_SPEED]:
+        robot_recon = rest_until(fitted, int(k))
+        if _reachable(robot_recon, base):
+            return robot_recon, note
+    return rest_until(fitted, int(held[0])), note
+
+
+def _reachable(recon: Reconstruction, base: np.ndarray) -> bool:
+    """Whether the robot at ``base`` (4, 4) can take the object at the grasp onset and do the rest of the task.
+
+    Some ranked grasp pose has all its key poses (:func:`~warpskill.robot.targets.key_targets`)
+    within the arm's reach (:func:`~warpskill.robot.placement.reach_excess`), and static IK
+    reaches it and its pre-grasp. False where no pose fits (the plan then says why).
+    """
+    try:
+        task = _task(recon)
+    except PlanError:
+        return False
+    k_on = task["k_on"]
+    scene = make_scene(recon, base=base)
+    near = [pose for _, _, pose in task["ranked"]
+            if reach_excess(base, [key_targets(recon, scene, pose, k_on, task["k_off"])]) == 0.0]
+    if not near:
+        return False
+    planner = Planner(scene)
+    T_on = pose_matrix(recon.object_pos[k_on], recon.object_rot[k_on])
+    return any(_grasp_ik(planner, T_on, pose)[0] is not None for pose in near)
+
+
+def _grasp_ik(planner: Planner, T_on: np.ndarray, pose: GraspPose) -> tuple[np.ndarray | None, str]:
+    """``(q, "")``: static IK reaches ``pose`` on the object at ``T_on`` and its pre-grasp; else ``(None, why)``."""
+    q, why = planner.static_ik(T_on @ pose.pose)
+    if q is None:
+        return None, why
+    q_pre, why = planner.static_ik(T_on @ pose.pose @ translate(0, 0, -PREGRASP), q)
+    return (q, "") if q_pre is not None else (None, why)
 
 
 def _task(recon: Reconstruction) -> dict:
@@ -220,11 +294,9 @@ def _feasible(planner: Planner, scene: Scene, task: dict, T_on: np.ndarray, T_of
         while i < len(ranked) and (not ready or ready[0][0] > ranked[i][0]):
             _, angle, pose = ranked[i]
             i += 1
-            q, why = planner.static_ik(T_on @ pose.pose)
-            q_pre, why_pre = planner.static_ik(T_on @ pose.pose @ translate(0, 0, -PREGRASP), q) if q is not None \
-                else (None, "")
-            if q is None or q_pre is None:
-                rejected.append((pose.name, why or why_pre))
+            q, why = _grasp_ik(planner, T_on, pose)
+            if q is None:
+                rejected.append((pose.name, why))
                 continue
             shift = np.zeros(3)
             if T_off is not None and pose.kind == "grasp":

@@ -9,6 +9,11 @@ change is blended linearly from the grasp to the release). Until the contact ons
 object is made to rest on a face (:func:`upright`: a reconstruction's clear tilt would
 topple it in the replay before the robot reaches it).
 
+An object already held in the first frame was carried into view (or moved before it) and
+never seen resting: :func:`rest_until` makes the robot's version of such a demonstration,
+in which the object rests below the frame the robot takes it over at
+(:func:`~warpskill.robot.retargeting.robot_reconstruction` chooses that frame).
+
 A grasp action (pick up, put ...) on an object wider than the gripper's usable opening on
 every face (both horizontal extents at the grasp onset) gets a substitute that fits: its
 horizontal extents capped at :data:`SUBSTITUTE_WIDTH`, its height kept. Pushes and pulls
@@ -26,7 +31,8 @@ from warpskill.contract.reconstruction import Reconstruction
 from warpskill.robot.grasps import FIT_MARGIN
 from warpskill.robot.model import MAX_OPENING
 
-__all__ = ["SUBSTITUTE_WIDTH", "USABLE_OPENING", "fit_sizes", "needs_substitute", "upright"]
+__all__ = ["SUBSTITUTE_WIDTH", "USABLE_OPENING", "fit_sizes", "needs_substitute", "rest_until", "resting_axis",
+           "upright"]
 
 USABLE_OPENING = MAX_OPENING - FIT_MARGIN
 """[m] widest object edge the gripper closes on."""
@@ -56,23 +62,24 @@ def _support(xy: np.ndarray, radius: float, static_pos, static_rot, static_size)
     return floor
 
 
-def upright(rot: np.ndarray) -> np.ndarray:
+def upright(rot: np.ndarray, up: int | None = None) -> np.ndarray:
     """(F, 3, 3) the rotations ``rot`` turned so that the cuboid rests on a face, heading kept.
 
-    Where the cuboid axis nearest the world's vertical is tilted by more than
-    :data:`UPRIGHT_TILT`, it becomes vertical and the next axis keeps its horizontal
-    direction. A cuboid can only rest on a face: a clearly tilted reconstruction would
-    topple in the replay before the robot reaches it (a slight tilt just settles).
+    Where the cuboid axis ``up`` (default: each frame's axis nearest the world's vertical)
+    is tilted by more than :data:`UPRIGHT_TILT`, it becomes vertical and the next axis
+    keeps its horizontal direction. A cuboid can only rest on a face: a clearly tilted
+    reconstruction would topple in the replay before the robot reaches it (a slight tilt
+    just settles).
     """
     out = np.array(rot, dtype=float, copy=True)
     for f, R in enumerate(rot):
-        i = int(np.argmax(np.abs(R[2])))
+        i = int(np.argmax(np.abs(R[2]))) if up is None else up
         if abs(R[2, i]) >= math.cos(math.radians(UPRIGHT_TILT)):
             continue  # settles onto its face in the replay
         j, k = (i + 1) % 3, (i + 2) % 3
         col_i = np.array([0.0, 0.0, math.copysign(1.0, R[2, i])])
         col_j = R[:, j] - (R[:, j] @ col_i) * col_i
-        if np.linalg.norm(col_j) < 1e-9:  # pragma: no cover - R[:, j] cannot be vertical when R[:, i] is nearest it
+        if np.linalg.norm(col_j) < 1e-9:  # axis j is vertical (only where ``up`` is given)
             col_j = R[:, k] - (R[:, k] @ col_i) * col_i
             col_j = np.cross(col_j, col_i)
         col_j /= np.linalg.norm(col_j)
@@ -80,17 +87,73 @@ def upright(rot: np.ndarray) -> np.ndarray:
     return out
 
 
+def rest_until(recon: Reconstruction, k: int) -> Reconstruction:
+    """``recon`` as the robot performs it when it takes over the object held from frame 0 at frame ``k``.
+
+    Frames 0 to ``k``: the object rests on its support (the table, z = 0, or the top of a
+    static box under it) below its frame-``k`` centre, with that frame's heading, on the
+    face of :func:`resting_axis` (:func:`upright`); ``grasped`` is 0 before ``k``, so ``k``
+    is the grasp onset. Held, it keeps that orientation (the robot carries it so). Its
+    centre follows the demonstrated path lowered by the drop onto the support, the drop
+    shrinking linearly to 0 at the end of the grasped span (the frame after the last held
+    one, or the last frame), but never below the highest support it will still pass over: the
+    robot lifts the object onto the demonstrated path and sets it down where the
+    demonstration does. The hand path is lowered with it (by the whole drop before ``k``).
+
+    Args:
+        recon: a reconstruction with the robot's sizes (:func:`fit_sizes`) whose object is
+            held (``grasped > 0.5``) in frames 0 and ``k``.
+        k: the grasp onset, a frame of the grasped span.
+    """
+    held = np.flatnonzero(recon.grasped > 0.5)
+    end = min(int(held[-1]) + 1, recon.num_frames - 1)
+    R = upright(recon.object_rot[k: k + 1], up=resting_axis(recon))[0]
+    half = 0.5 * float(np.abs(R[2]) @ recon.object_size)  # [m] vertical half extent
+    floor = _support(recon.object_pos[:, :2], 0.5 * min(recon.object_size[:2]), recon.static_pos,
+                     recon.static_rot, recon.static_size)  # (F,) [m]
+    z = recon.object_pos[:, 2]
+    drop = np.zeros(recon.num_frames)  # (F,) [m] how far each frame is lowered
+    drop[: k + 1] = z[k] - floor[k] - half
+    if end > k:
+        ahead = np.maximum.accumulate(floor[end:k:-1])[::-1]  # frames k+1..end: the highest support still ahead
+        lowered = z[k + 1: end + 1] - drop[k] * np.linspace(1.0, 0.0, end - k + 1)[1:]
+        drop[k + 1: end + 1] = z[k + 1: end + 1] - np.maximum(lowered, ahead + half)
+    object_pos = recon.object_pos.copy()
+    object_pos[: k + 1] = recon.object_pos[k]
+    object_pos[:, 2] -= drop
+    object_rot = recon.object_rot.copy()
+    object_rot[: end + 1] = R
+    hand_pos = recon.hand_pos.copy()
+    hand_pos[:, 2] -= drop
+    grasped = recon.grasped.copy()
+    grasped[:k] = 0.0
+    return dataclasses.replace(recon, object_pos=object_pos, object_rot=object_rot, hand_pos=hand_pos,
+                               grasped=grasped)
+
+
 def _onset(recon: Reconstruction) -> int:
     held = np.flatnonzero(recon.grasped > 0.5)
     return int(held[0]) if len(held) else 0
+
+
+def resting_axis(recon: Reconstruction) -> int:
+    """The cuboid axis (0, 1 or 2) that is vertical while the object rests before the grasp.
+
+    The axis nearest the world's vertical at the grasp onset; for an object held from the
+    first frame (carried into view, never seen resting), the one nearest it in most frames
+    (a carried object's reconstructed tilt is unreliable).
+    """
+    nearest = np.argmax(np.abs(recon.object_rot[:, 2, :]), axis=1)  # (F,)
+    if recon.grasped[0] > 0.5:
+        return int(np.argmax(np.bincount(nearest, minlength=3)))
+    return int(nearest[_onset(recon)])
 
 
 def needs_substitute(recon: Reconstruction, size: np.ndarray) -> bool:
     """Whether a grasp action's cuboid of ``size`` is wider than the usable opening on every face."""
     if str(recon.action).startswith(("push_", "pull_")):
         return False
-    R = recon.object_rot[_onset(recon)]
-    up = int(np.argmax(np.abs(R[2])))  # the cuboid axis closest to the world's vertical
+    up = resting_axis(recon)
     return bool(all(size[i] > USABLE_OPENING for i in range(3) if i != up))
 
 
@@ -116,8 +179,7 @@ def fit_sizes(recon: Reconstruction, *, object_size=None, static_sizes=None,
         statics = _sizes(static_sizes, (recon.num_static, 3), "the static sizes")
     notes = []
     if not keep_size and needs_substitute(recon, size):
-        R = recon.object_rot[_onset(recon)]
-        up = int(np.argmax(np.abs(R[2])))
+        up = resting_axis(recon)
         old = size.copy()
         size = np.array([s if i == up else min(s, SUBSTITUTE_WIDTH) for i, s in enumerate(size)])
         notes.append(f"object: the {' x '.join(f'{s:.3f}' for s in old)} m cuboid is wider than the gripper's "
