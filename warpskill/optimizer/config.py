@@ -16,7 +16,7 @@ class OptimizeConfig:
     init_iterations: int = 150  #: stage (a) iterations
     #: stage (a)'s successive halving of the object-depth hypotheses: after each (iteration,
     #: margin), a hypothesis whose loss is more than the margin (relative) above the best stops
-    rival_rungs: tuple[tuple[int, float], ...] = ((25, 0.10), (50, 0.05), (75, 0.02), (100, 0.0))
+    rival_rungs: tuple[tuple[int, float], ...] = ((25, 0.5), (50, 0.25), (100, 0.1))
     learning_rate: float = 5e-3  #: physics stage (the paper's)
     init_learning_rate: float = 1e-2  #: stage (a)
     image_scale: float = 0.25  #: working resolution relative to the masks
