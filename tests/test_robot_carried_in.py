@@ -6,21 +6,15 @@ import dataclasses
 
 import numpy as np
 import pytest
+from robot_support import require_robot
 
-pytest.importorskip("placo")
-pytest.importorskip("mujoco")
+robot = require_robot("placo", "mujoco")
 from warpskill.contract.reconstruction import Reconstruction  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
-
-robot = pytest.importorskip("warpskill.robot")
 from warpskill.robot import retargeting  # noqa: E402
-from warpskill.robot.model import RobotModelError, make_scene, panda_description_dir  # noqa: E402
+from warpskill.robot.model import make_scene  # noqa: E402
 from warpskill.robot.sizes import fit_sizes, rest_until  # noqa: E402
 
-try:
-    panda_description_dir()
-except RobotModelError as error:  # pragma: no cover - depends on the environment
-    pytest.skip(str(error), allow_module_level=True)
 
 JOIN = 24  # put_next_to 0 carries the cuboid at this frame; before it, the cuboid comes from far to the left
 

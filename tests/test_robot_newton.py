@@ -3,22 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
+from robot_support import require_robot
 
-pytest.importorskip("placo")
-pytest.importorskip("mujoco")
-pytest.importorskip("newton")
-pytest.importorskip("trimesh")  # Newton's URDF importer reads the collision meshes with it
+robot = require_robot("placo", "mujoco", "newton", "trimesh")  # trimesh: Newton's URDF importer reads meshes with it
 from warpskill.contract.reconstruction import Reconstruction  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
-
-robot = pytest.importorskip("warpskill.robot")
-from warpskill.robot.model import RobotModelError, panda_description_dir  # noqa: E402
-
-try:
-    panda_description_dir()
-except RobotModelError as error:  # pragma: no cover - depends on the environment
-    pytest.skip(str(error), allow_module_level=True)
 
 
 def _replays(action: str, seed: int):

@@ -4,20 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from robot_support import require_robot
 
-pytest.importorskip("placo")
-pytest.importorskip("mujoco")
+robot = require_robot("placo", "mujoco")
 from warpskill.cli import main  # noqa: E402
 from warpskill.contract.reconstruction import FIELD_SHAPES, Reconstruction  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
-
-robot = pytest.importorskip("warpskill.robot")
-from warpskill.robot.model import RobotModelError, panda_description_dir  # noqa: E402
-
-try:
-    panda_description_dir()
-except RobotModelError as error:  # pragma: no cover - depends on the environment
-    pytest.skip(str(error), allow_module_level=True)
 
 
 def truth(action: str, seed: int) -> Reconstruction:

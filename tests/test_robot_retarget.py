@@ -6,23 +6,17 @@ import dataclasses
 
 import numpy as np
 import pytest
+from robot_support import require_robot
 
-pytest.importorskip("placo")
+robot = require_robot("placo")
 from warpskill.contract.reconstruction import Reconstruction  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
-
-robot = pytest.importorskip("warpskill.robot")
 from warpskill.robot.model import (  # noqa: E402
-    RobotModelError,
     make_scene,
     panda_description_dir,
     panda_urdf,
 )
 
-try:
-    panda_description_dir()
-except RobotModelError as error:  # pragma: no cover - depends on the environment
-    pytest.skip(str(error), allow_module_level=True)
 
 # URDF limits of the Panda arm (panda.urdf of example-robot-data).
 LOWER = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])

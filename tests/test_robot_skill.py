@@ -7,20 +7,14 @@ import dataclasses
 
 import numpy as np
 import pytest
+from robot_support import require_robot
 
-pytest.importorskip("placo")
-pytest.importorskip("mujoco")
+robot = require_robot("placo", "mujoco")
 from warpskill.cli import main  # noqa: E402
 from warpskill.contract.reconstruction import Reconstruction  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
+from warpskill.robot.model import make_scene  # noqa: E402
 
-robot = pytest.importorskip("warpskill.robot")
-from warpskill.robot.model import RobotModelError, make_scene, panda_description_dir  # noqa: E402
-
-try:
-    panda_description_dir()
-except RobotModelError as error:  # pragma: no cover - depends on the environment
-    pytest.skip(str(error), allow_module_level=True)
 
 LOWER = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])
 UPPER = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
