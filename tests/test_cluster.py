@@ -61,6 +61,7 @@ def test_each_reconstruction_equals_the_serial_one(run, demos):
     assert summary.done == ["pick", "push", "onto"]
     for name, demo in demos[0].items():
         assert summary.outcomes[name].status == "done" and summary.outcomes[name].attempts == 1
+        assert 0 < summary.outcomes[name].optimize_seconds <= summary.outcomes[name].seconds
         parallel = Reconstruction.load(out / name / "reconstruction.npz")
         serial = optimize(demo, iterations=ITERATIONS, seed=SEED, config=CONFIG, progress=False)
         for key in FIELD_SHAPES:

@@ -64,3 +64,30 @@ def test_gradient_matches_finite_differences():
     with torch.no_grad():
         rendered.copy_(torch.where(rendered > 0.5, 0.6 + 0.3 * rendered, 0.4 * rendered))
     assert torch.autograd.gradcheck(lambda r: diou_loss(r, target)[0], (rendered,), eps=1e-6, atol=1e-7)
+
+
+def test_masks_loss_picks_each_channels_loss_and_its_gradient_matches_finite_differences():
+    from warpskill.optimizer.losses import MaskTargets, box_loss, hidden_loss, masks_loss
+
+    gen = torch.Generator().manual_seed(1)
+    target = torch.zeros(3, 2, 6, 7, dtype=torch.float64)
+    target[:2, :, 1:4, 2:6] = 1.0  # both channels seen in frames 0-1; the object hidden in frame 2
+    target[2, 0, 2:5, 1:3] = 1.0
+    absent = torch.tensor([[False, False], [False, False], [False, True]])
+    targets = MaskTargets(target, boxed=torch.tensor([False, True]), absent=absent)
+    rendered = torch.rand(3, 2, 6, 7, generator=gen, dtype=torch.float64)
+    with torch.no_grad():  # away from 0.5, where the enclosing boxes jump
+        rendered.copy_(torch.where(rendered > 0.5, 0.6 + 0.3 * rendered, 0.4 * rendered))
+    rendered.requires_grad_()
+    loss = masks_loss(rendered, targets)
+    assert loss[:, 0].tolist() == diou_loss(rendered[:, 0], target[:, 0])[0].tolist()
+    assert loss[:2, 1].tolist() == box_loss(rendered, targets)[:2, 1].tolist()
+    assert loss[2, 1] == hidden_loss(rendered, targets)[2, 1]
+    assert torch.autograd.gradcheck(lambda r: masks_loss(r, targets), (rendered,), eps=1e-6, atol=1e-6)
+
+
+def test_masks_of_another_shape_than_the_targets_are_refused():
+    from warpskill.optimizer.losses import MaskTargets, masks_loss
+
+    with pytest.raises(ValueError, match="differ in shape"):
+        masks_loss(torch.zeros(2, 2, 6, 7), MaskTargets(torch.zeros(2, 2, 6, 8)))

@@ -19,6 +19,7 @@ reconstruction and every replay meet the criteria), and a per-video table follow
 from __future__ import annotations
 
 import os
+import statistics
 import time
 import traceback
 from pathlib import Path
@@ -79,7 +80,8 @@ def bench_something_else(
 
     Returns:
         ``{"rows": {row: [(action, success)]}, "failures": {video_id: reason},
-        "seconds": {video_id: seconds}, "wall_seconds": seconds}``; with ``robot`` also
+        "seconds": {video_id: seconds}, "wall_seconds": seconds}`` (``seconds``: each video's
+        reconstruction, both stages, where this run made it); with ``robot`` also
         ``"robot": {video_id: RobotOutcome or None}`` and ``"agreement"``
         (:func:`~warpskill.bench.end_to_end.agreement`).
     """
@@ -115,8 +117,10 @@ def bench_something_else(
             if done.exists():
                 recon, status = Reconstruction.load(done), "done before"
             else:
+                optimizing = time.perf_counter()
                 recon = optimize(demo, device=device, iterations=iterations, progress=False,
                                  checkpoint=folder / "checkpoint.pt")
+                seconds[vid] = time.perf_counter() - optimizing
                 recon.save(done)
                 if pictures:
                     save_pictures(recon, demo, folder)
@@ -132,11 +136,11 @@ def bench_something_else(
                     step.skip(vid, video.action)
             print(f"{vid:>6} {video.action or '?':<20} ERROR {failures[vid]}", flush=True)
             continue
-        seconds[vid] = time.perf_counter() - start
         results.append((video.action, evaluation.success))
         failed = [name for name, ok in evaluation.checks.items() if not ok]
         verdict = "ok  " if evaluation.success else "fail (" + ", ".join(failed) + ")"
-        print(f"{vid:>6} {video.action:<20} {verdict}  {status}, {seconds[vid]:.1f} s, {len(notes)} note(s)", flush=True)
+        took = f"{time.perf_counter() - start:.1f} s" + (f" ({seconds[vid]:.1f} s reconstructing)" if vid in seconds else "")
+        print(f"{vid:>6} {video.action:<20} {verdict}  {status}, {took}, {len(notes)} note(s)", flush=True)
         if step is not None:
             step.run(vid, video.action, recon, evaluation.success, folder)
     return _report(results, failures, seconds, time.perf_counter() - wall, "serial, in this process", step)
@@ -183,13 +187,15 @@ def _bench_on_ray(table, vids, out: Path, iterations, device, pictures, workers,
                 step.skip(vid, video.action)
             print(f"{vid:>6} {video.action or '?':<20} ERROR {failures[vid]}", flush=True)
             continue
-        seconds[vid] = outcome.seconds
+        if outcome.status == "done":
+            seconds[vid] = outcome.optimize_seconds
         results.append((video.action, evaluation.success))
         failed = [name for name, ok in evaluation.checks.items() if not ok]
         verdict = "ok  " if evaluation.success else "fail (" + ", ".join(failed) + ")"
         status = "reconstructed" if outcome.status == "done" else outcome.status
         print(f"{vid:>6} {video.action:<20} {verdict}  {status}, {outcome.seconds:.1f} s in its task "
-              f"({outcome.cpu_seconds:.1f} s CPU), {len(notes[vid])} note(s)", flush=True)
+              f"({outcome.cpu_seconds:.1f} s CPU, {outcome.optimize_seconds:.1f} s reconstructing), "
+              f"{len(notes[vid])} note(s)", flush=True)
         if step is not None:
             step.run(vid, video.action, recon, evaluation.success, out / vid)
     cpu = sum(o.cpu_seconds for o in summary.outcomes.values())
@@ -268,4 +274,7 @@ def _report(results, failures, seconds, wall: float, where: str, step: _RobotSte
             print(f"  {vid}: {reason}")
     extra = step.report() if step is not None else {}
     print(f"\nwall time: {wall:.1f} s ({where}; {sum(seconds.values()):.1f} s of reconstruction)")
+    if seconds:
+        print(f"reconstruction (both stages) per video: median {statistics.median(seconds.values()):.1f} s "
+              f"({min(seconds.values()):.1f}-{max(seconds.values()):.1f} s)")
     return {"rows": rows, "failures": failures, "seconds": seconds, "wall_seconds": wall, **extra}

@@ -56,6 +56,7 @@ class Outcome:
     reason: str = ""  #: why it failed (or what went wrong after the reconstruction was written)
     seconds: float = 0.0  #: time in its task (a batch's time for each of its demonstrations)
     cpu_seconds: float = 0.0  #: CPU time of its task's process (all threads) in that time
+    optimize_seconds: float = 0.0  #: time of its reconstruction alone (both stages; a batch's for each)
     attempts: int = 0  #: tasks that started on it in this run (more than 1: a worker died and Ray retried)
     resumed: bool = False  #: the last attempt started from a checkpoint
 
@@ -333,15 +334,17 @@ def _optimize_group(items: list[tuple[str, object, str]], options: dict) -> list
 def _optimize(names, demos, states, options, checkpoint) -> dict[str, dict]:
     from warpskill.optimizer.pipeline import optimize_many
 
+    start = time.perf_counter()
     reconstructions = optimize_many([demos[name] for name in names], device=options["device"],
                                     iterations=options["iterations"], seed=options["seed"], progress=False,
                                     config=options["config"], init_only=options["init_only"], checkpoint=checkpoint)
+    seconds = time.perf_counter() - start
     results = {}
     for name, recon in zip(names, reconstructions):
         folder = states[name]["folder"]
         recon.save(folder / RESULT)
         (folder / ERROR).unlink(missing_ok=True)
-        results[name] = dict(status="done", reason="")
+        results[name] = dict(status="done", reason="", optimize_seconds=seconds)
         if options["postprocess"] is not None:
             try:
                 options["postprocess"](recon, demos[name], folder)

@@ -21,7 +21,7 @@ class MaskTargets:
         self.boxed = boxed
         self.absent = absent
         with torch.no_grad():
-            self.moments = _MaskMoments(masks)
+            self.moments = _MaskMoments.of(masks)
             if absent is not None:  # (N, C) masks
                 mass = self.moments.mass
                 seen = mass > _EMPTY_MASS
@@ -55,22 +55,8 @@ def diou_loss(rendered: torch.Tensor, target: torch.Tensor | MaskTargets) -> tup
         of entries whose target is not empty.
     """
     targets = target if isinstance(target, MaskTargets) else MaskTargets(target.to(rendered))
-    if rendered.shape != targets.masks.shape:
-        raise ValueError(
-            f"rendered {tuple(rendered.shape)} and target {tuple(targets.masks.shape)} masks differ in shape"
-        )
-    intersection = (rendered * targets.masks).sum((-2, -1))
-    r, t = _MaskMoments(rendered), targets.moments
-    iou = intersection / (r.mass + t.mass - intersection).clamp_min(_EMPTY_MASS)
-    lo = torch.minimum(r.box_min, t.box_min)
-    hi = torch.maximum(r.box_max, t.box_max)
-    diag2 = ((hi - lo) ** 2).sum(-1).clamp_min(1.0)
-    distance = ((r.centroid - t.centroid) ** 2).sum(-1) / diag2
-
-    valid = t.mass > _EMPTY_MASS
-    rendered_empty = r.mass <= _EMPTY_MASS
-    loss = torch.where(rendered_empty, torch.full_like(iou, 2.0), 1.0 - iou + distance.clamp_max(1.0))
-    return torch.where(valid, loss, torch.zeros_like(loss)), valid
+    profile = MaskProfile(rendered, targets)
+    return _diou(profile, targets), targets.moments.mass > _EMPTY_MASS
 
 
 def hidden_loss(rendered: torch.Tensor, targets: MaskTargets) -> torch.Tensor:
@@ -80,8 +66,7 @@ def hidden_loss(rendered: torch.Tensor, targets: MaskTargets) -> torch.Tensor:
     it is wrong: it should be occluded or outside the image. An empty target elsewhere says
     nothing (:func:`diou_loss` gives it no term).
     """
-    mass = rendered.sum((-2, -1))
-    return (mass / targets.typical_mass.clamp_min(1.0)).clamp_max(1.0)
+    return _hidden(MaskProfile(rendered, targets), targets)
 
 
 def box_loss(rendered: torch.Tensor, targets: MaskTargets) -> torch.Tensor:
@@ -95,9 +80,79 @@ def box_loss(rendered: torch.Tensor, targets: MaskTargets) -> torch.Tensor:
     ``mean +- sqrt(3) std`` per axis is its box, with gradients. Frames with an empty target
     count 0; an empty rendering counts 2, as in :func:`diou_loss`.
     """
-    t = targets.moments
-    r = _MaskMoments(rendered, spread=True)
-    r_min, r_max = r.centroid - 3**0.5 * r.std, r.centroid + 3**0.5 * r.std
+    return _box(MaskProfile(rendered, targets), targets)
+
+
+def masks_loss(rendered: torch.Tensor, targets: MaskTargets) -> torch.Tensor:
+    """Per mask (N, C): :func:`diou_loss`, :func:`box_loss` on the channels drawn from boxes
+    (``targets.boxed``) and :func:`hidden_loss` where a part is known to be out of sight
+    (``targets.absent``), from one pass over the rendered masks (:class:`MaskProfile`)."""
+    profile = MaskProfile(rendered, targets)
+    per_mask = _diou(profile, targets)
+    if targets.boxed is not None and bool(targets.boxed.any()):
+        per_mask = torch.where(targets.boxed.to(per_mask.device), _box(profile, targets), per_mask)
+    if targets.absent is not None:
+        per_mask = torch.where(targets.absent, _hidden(profile, targets), per_mask)
+    return per_mask
+
+
+class MaskProfile:
+    """What every mask loss reads of rendered masks (..., H, W): row sums (..., H), column
+    sums (..., W), and the overlap (...) with the targets, from one pass (:class:`_Profile`),
+    and the moments of :class:`_MaskMoments` from them."""
+
+    def __init__(self, rendered: torch.Tensor, targets: MaskTargets):
+        if rendered.shape != targets.masks.shape:
+            raise ValueError(
+                f"rendered {tuple(rendered.shape)} and target {tuple(targets.masks.shape)} masks differ in shape"
+            )
+        rows, cols, self.overlap = _Profile.apply(rendered, targets.masks.to(rendered))
+        self.moments = _MaskMoments(rows, cols)
+
+
+class _Profile(torch.autograd.Function):
+    """(rows, cols, overlap) of masks (..., H, W) against fixed targets; the gradient is the
+    broadcast ``g_rows[:, None] + g_cols[None, :] + g_overlap * targets``, one image (the
+    separate Torch reductions would each write an image of gradients and sum them)."""
+
+    @staticmethod
+    def forward(ctx, masks: torch.Tensor, targets: torch.Tensor):
+        ctx.save_for_backward(targets)
+        overlap = torch.linalg.vecdot(masks.flatten(-2), targets.flatten(-2))
+        return masks.sum(-1), masks.sum(-2), overlap
+
+    @staticmethod
+    def backward(ctx, g_rows: torch.Tensor, g_cols: torch.Tensor, g_overlap: torch.Tensor):
+        (targets,) = ctx.saved_tensors
+        grad = g_rows.unsqueeze(-1) + g_cols.unsqueeze(-2)
+        return torch.addcmul(grad, g_overlap[..., None, None], targets), None
+
+
+def _diou(profile: MaskProfile, targets: MaskTargets) -> torch.Tensor:
+    """:func:`diou_loss`'s per-mask loss from the rendered masks' profile."""
+    r, t = profile.moments, targets.moments
+    intersection = profile.overlap
+    iou = intersection / (r.mass + t.mass - intersection).clamp_min(_EMPTY_MASS)
+    lo = torch.minimum(r.box_min, t.box_min)
+    hi = torch.maximum(r.box_max, t.box_max)
+    diag2 = ((hi - lo) ** 2).sum(-1).clamp_min(1.0)
+    distance = ((r.centroid - t.centroid) ** 2).sum(-1) / diag2
+    valid = t.mass > _EMPTY_MASS
+    rendered_empty = r.mass <= _EMPTY_MASS
+    loss = torch.where(rendered_empty, torch.full_like(iou, 2.0), 1.0 - iou + distance.clamp_max(1.0))
+    return torch.where(valid, loss, torch.zeros_like(loss))
+
+
+def _hidden(profile: MaskProfile, targets: MaskTargets) -> torch.Tensor:
+    """:func:`hidden_loss` from the rendered masks' profile."""
+    return (profile.moments.mass / targets.typical_mass.clamp_min(1.0)).clamp_max(1.0)
+
+
+def _box(profile: MaskProfile, targets: MaskTargets) -> torch.Tensor:
+    """:func:`box_loss` from the rendered masks' profile."""
+    t, r = targets.moments, profile.moments
+    std = r.spread()
+    r_min, r_max = r.centroid - 3**0.5 * std, r.centroid + 3**0.5 * std
     overlap = (torch.minimum(r_max, t.box_max) - torch.maximum(r_min, t.box_min)).clamp_min(0.0).prod(-1)
     area_r = (r_max - r_min).prod(-1)
     area_t = (t.box_max - t.box_min).clamp_min(0.0).prod(-1)
@@ -111,28 +166,36 @@ def box_loss(rendered: torch.Tensor, targets: MaskTargets) -> torch.Tensor:
 
 
 class _MaskMoments:
-    """Mass [px], centroid (u, v) [px] and box corners of masks (..., H, W), from row and column
-    sums; with ``spread`` also the standard deviation (u, v) [px] along each axis."""
+    """Mass [px], centroid (u, v) [px] and box corners of masks (..., H, W), from their row
+    sums (..., H) and column sums (..., W)."""
 
-    def __init__(self, masks: torch.Tensor, *, spread: bool = False):
-        H, W = masks.shape[-2:]
-        v = torch.arange(H, dtype=masks.dtype, device=masks.device) + 0.5
-        u = torch.arange(W, dtype=masks.dtype, device=masks.device) + 0.5
-        rows = masks.sum(-1)  # (..., H)
-        cols = masks.sum(-2)  # (..., W)
+    def __init__(self, rows: torch.Tensor, cols: torch.Tensor):
+        H, W = rows.shape[-1], cols.shape[-1]
+        self.rows, self.cols = rows, cols
+        self.v = torch.arange(H, dtype=rows.dtype, device=rows.device) + 0.5
+        self.u = torch.arange(W, dtype=rows.dtype, device=rows.device) + 0.5
         self.mass = rows.sum(-1)
-        denominator = self.mass.clamp_min(_EMPTY_MASS)
-        self.centroid = torch.stack([(cols * u).sum(-1) / denominator, (rows * v).sum(-1) / denominator], -1)
-        if spread:
-            var_u = (cols * (u - self.centroid[..., :1]).square()).sum(-1) / denominator
-            var_v = (rows * (v - self.centroid[..., 1:]).square()).sum(-1) / denominator
-            self.std = (torch.stack([var_u, var_v], -1) + 1.0 / 12.0).sqrt()  # a one-pixel mask is 1 px wide
-        inf = torch.tensor(float("inf"), dtype=masks.dtype, device=masks.device)
+        self.denominator = self.mass.clamp_min(_EMPTY_MASS)
+        self.centroid = torch.stack(
+            [(cols * self.u).sum(-1) / self.denominator, (rows * self.v).sum(-1) / self.denominator], -1
+        )
+        inf = torch.tensor(float("inf"), dtype=rows.dtype, device=rows.device)
         in_col, in_row = cols.detach() >= 0.5, rows.detach() >= 0.5
         # An empty mask gets an inverted box (+inf, -inf): it never widens the union box.
         self.box_min = torch.stack(
-            [torch.where(in_col, u - 0.5, inf).amin(-1), torch.where(in_row, v - 0.5, inf).amin(-1)], -1
+            [torch.where(in_col, self.u - 0.5, inf).amin(-1), torch.where(in_row, self.v - 0.5, inf).amin(-1)], -1
         )
         self.box_max = torch.stack(
-            [torch.where(in_col, u + 0.5, -inf).amax(-1), torch.where(in_row, v + 0.5, -inf).amax(-1)], -1
+            [torch.where(in_col, self.u + 0.5, -inf).amax(-1), torch.where(in_row, self.v + 0.5, -inf).amax(-1)], -1
         )
+
+    @classmethod
+    def of(cls, masks: torch.Tensor) -> "_MaskMoments":
+        """The moments of masks (..., H, W)."""
+        return cls(masks.sum(-1), masks.sum(-2))
+
+    def spread(self) -> torch.Tensor:
+        """Standard deviation (u, v) [px] along each axis (..., 2); a one-pixel mask is 1 px wide."""
+        var_u = (self.cols * (self.u - self.centroid[..., :1]).square()).sum(-1) / self.denominator
+        var_v = (self.rows * (self.v - self.centroid[..., 1:]).square()).sum(-1) / self.denominator
+        return (torch.stack([var_u, var_v], -1) + 1.0 / 12.0).sqrt()

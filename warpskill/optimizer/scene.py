@@ -10,7 +10,7 @@ from warpskill.contract.camera import Intrinsics
 from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.rendering import render_silhouettes
 from warpskill.engine.rotations import yaw_rotation
-from warpskill.optimizer.losses import MaskTargets, box_loss, diou_loss, hidden_loss
+from warpskill.optimizer.losses import MaskTargets, masks_loss
 from warpskill.optimizer.weights import LossWeights
 
 
@@ -60,11 +60,7 @@ def perceptual_loss(rendered: torch.Tensor, targets: MaskTargets, weights: LossW
     """Weighted mean dIoU over frames: hand, object, then static channels (N, C, h, w); the
     channels drawn from boxes (``targets.boxed``) compare boxes (:func:`box_loss`), and parts
     known to be out of sight (``targets.absent``) are asked to vanish (:func:`hidden_loss`)."""
-    per_mask, _ = diou_loss(rendered, targets)
-    if targets.boxed is not None and bool(targets.boxed.any()):
-        per_mask = torch.where(targets.boxed.to(per_mask.device), box_loss(rendered, targets), per_mask)
-    if targets.absent is not None:
-        per_mask = torch.where(targets.absent, hidden_loss(rendered, targets), per_mask)
+    per_mask = masks_loss(rendered, targets)
     channel_weights = torch.tensor(
         [weights.hand, weights.object] + [weights.static] * (rendered.shape[1] - 2),
         dtype=rendered.dtype,
