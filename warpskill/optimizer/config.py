@@ -18,7 +18,7 @@ class OptimizeConfig:
     #: margin), a hypothesis whose loss is more than the margin (relative) above the best stops
     rival_rungs: tuple[tuple[int, float], ...] = ((25, 0.5), (50, 0.25), (100, 0.1))
     #: physics stage: twice the paper's 5e-3 (its Adam steps were lr-bound: the loss still fell
-    #: steadily at 250 iterations, and 150 at 1e-2 end lower on most videos)
+    #: steadily at 250 iterations; 150 at 1e-2 ended lower on 4 of 6 videos tried)
     learning_rate: float = 1e-2
     init_learning_rate: float = 1e-2  #: stage (a)
     image_scale: float = 0.25  #: working resolution relative to the masks
