@@ -1,6 +1,7 @@
 """Something-Else boxes + phases into demonstrations: the dev annotations, messy and malformed files."""
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -106,6 +107,18 @@ def test_bench_reports_a_failing_video_and_goes_on(tmp_path, capsys):
                  "--actions", str(paths[2]), "-o", str(tmp_path / "out")])
     out = capsys.readouterr().out
     assert code == 0 and "ERROR DemonstrationError: video 7: no action phase" in out and "0/1" in out
+
+
+def test_bench_reports_each_videos_reconstruction_time_apart_from_its_pictures(tmp_path, capsys):
+    paths = _write(tmp_path, _messy())
+    code = main(["bench", "something-else", "--annotations", str(paths[0]), "--phases", str(paths[1]),
+                 "--actions", str(paths[2]), "-o", str(tmp_path / "out"), "--iterations", "3"])
+    out = capsys.readouterr().out
+    line = next(line for line in out.splitlines() if line.split()[:1] == ["7"])
+    total, reconstructing = map(float, re.search(r"([\d.]+) s \(([\d.]+) s reconstructing\)", line).groups())
+    assert code == 0 and 0 < reconstructing <= total
+    assert (tmp_path / "out" / "7" / "reconstruction.npz").is_file()
+    assert f"reconstruction (both stages) per video: median {reconstructing:.1f} s" in out
 
 
 @pytest.mark.skipif(DEV is None, reason="the shared development data is not next to the repository")
