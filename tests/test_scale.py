@@ -56,3 +56,30 @@ def test_the_command_line_takes_known_lengths():
     args = parser.parse_args(["--known", "object_height=0.10", "static_height=0.05"])
     assert parse_known(args.known) == {"object_height": 0.10, "static_height": 0.05}
     assert np.isclose(parse_known(args.known)["object_height"], 0.1)
+
+
+@pytest.mark.parametrize("axis, tolerance", [((1.0, 0.0, 0.15), 0.05), ((-1.0, 0.3, 0.3), 0.05), ((0.3, -0.6, 0.8), 0.2)],
+                         ids=["across the view", "across and away", "reaching down"])
+def test_the_hand_tip_depth_comes_from_the_masks_width_at_the_tip(axis, tolerance):
+    import torch
+
+    from warpskill.contract.camera import Intrinsics
+    from warpskill.contract.geometry import frame_from_axis
+    from warpskill.engine.projection import project, world_to_camera
+    from warpskill.engine.raycast import raycast_masks
+    from warpskill.optimizer.stage_a import _hand_depth, _MaskGeometry
+
+    # The default camera's pixels are not square (fx != fy): a hand lying across the view is
+    # measured top to bottom. A hand reaching down from the camera's side (local z up and
+    # towards the camera, which looks along +y) comes closer to the camera, and widens,
+    # away from its tip (the old estimate, over a disc three widths around the tip: -42 %).
+    intrinsics = Intrinsics.default(120, 214)
+    height, elevation = 0.45, 0.6
+    tip = np.array([[0.02, 0.45, 0.06]])
+    masks = raycast_masks(tip, frame_from_axis(np.array([axis])), np.zeros((1, 0, 3)), np.zeros((1, 0, 3, 3)),
+                          np.zeros((0, 3)), height, elevation, intrinsics)
+    f64 = lambda x: torch.tensor(x, dtype=torch.float64)  # noqa: E731
+    camera = world_to_camera(f64(tip), f64(height), f64(elevation))
+    tip_pixel = project(camera, torch.as_tensor(intrinsics.K)).numpy()
+    estimate = _hand_depth(_MaskGeometry(masks[:, 0].astype(float)), tip_pixel, intrinsics.K)
+    assert estimate == pytest.approx(float(camera[0, 2]), rel=tolerance)

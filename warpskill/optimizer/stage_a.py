@@ -77,28 +77,40 @@ def _rays(pixels: np.ndarray, K: np.ndarray, R_wc: np.ndarray) -> np.ndarray:
     return d @ R_wc.T
 
 
-def _band_width(pixels: np.ndarray) -> float:
-    """Width [px] of a band of pixels (M, 2) across its main axis: sqrt(12) x its minor std."""
-    return float(np.sqrt(12.0 * max(np.linalg.eigvalsh(np.cov(pixels.T))[0], 1.0 / 12.0)))
+def _band_width(points: np.ndarray, axis: np.ndarray | None = None) -> float:
+    """Width of a band of points (M, 2): sqrt(12) x their std across its main axis, or along
+    ``axis`` (2,) when given (a uniform band's width, in the points' units)."""
+    if axis is None:
+        variance = np.linalg.eigvalsh(np.cov(points.T))[0]
+    else:
+        variance = float(np.var(points @ axis))
+    return float(np.sqrt(12.0 * variance))
 
 
-def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, fx: float) -> float | None:
-    """Median camera depth [m] of the hand tip, from the mask's width near the tip.
+def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, K: np.ndarray) -> float | None:
+    """Median camera depth [m] of the hand tip, from the mask's width at the tip.
 
-    The hand is a cylinder of known radius R, so a stretch of mask w [px] wide lies at
-    depth 2 R fx / w. The arm widens towards the camera: only the pixels within a few
-    widths of the tip (the hand pixel nearest ``targets_of`` (N, 2), the object's centroid)
-    are measured.
+    The hand is a cylinder of known radius R, so a stretch of mask w wide (in normalised
+    image coordinates, pixels over the focal lengths: pixels need not be square) lies at
+    depth 2 R / w. Its width is measured across the mask's main axis, in the slab half a width
+    long that starts at the tip (the hand pixel nearest ``targets_of`` (N, 2) [px], the
+    object's centroid): farther up, a hand reaching forwards or down comes closer to the
+    camera and widens.
     """
+    focal = np.array([K[0, 0], K[1, 1]])
     depths = []
     for k in np.flatnonzero(geom.visible):
         pixels = geom.pixels(k)
         if len(pixels) < 6:
             continue
-        tip = pixels[np.argmin(((pixels - targets_of[k]) ** 2).sum(1))]
-        near = pixels[((pixels - tip) ** 2).sum(1) < (3.0 * _band_width(pixels)) ** 2]
-        if len(near) >= 6:
-            depths.append(2.0 * HAND_RADIUS * fx / _band_width(near))
+        tip = pixels[np.argmin(((pixels - targets_of[k]) ** 2).sum(1))] / focal
+        points = pixels / focal
+        across, main = np.linalg.eigh(np.cov(points.T))[1].T
+        along = (points - tip) @ main
+        along = along if np.median(along) >= 0 else -along  # from the tip up the hand
+        slab = points[(along >= 0) & (along <= 0.5 * _band_width(points))]
+        if len(slab) >= 6:
+            depths.append(2.0 * HAND_RADIUS / max(_band_width(slab, across), 1.0 / focal.max()))  # >= 1 px
     return float(np.median(depths)) if depths else None
 
 
@@ -121,7 +133,8 @@ def initial_guess(
     """A rough scene read off the masks' geometry, before any optimisation.
 
     The hand's apparent width (its radius is known) gives the scene's depth; with the
-    prior elevation, the object's lowest image row at that depth gives the camera height.
+    prior elevation, the object's box bottom at that depth, before it is first carried, gives
+    the camera height.
     Cuboids then stand upright on the ground below their mask's bottom edge, sized from
     the mask at that depth; the hand tip is at the hand pixel nearest the object, at the
     object's depth, its axis pointing from there towards the rest of the hand mask and the
@@ -159,10 +172,14 @@ def initial_guess(
     object_geom = _MaskGeometry(targets[:, 1])
 
     object_centroid = _fill_missing(object_geom.centroid, object_geom.visible)
-    depth = _hand_depth(hand_geom, object_centroid, K[0, 0]) if hand_width else None
+    depth = _hand_depth(hand_geom, object_centroid, K) if hand_width else None
     h0 = INITIAL_CAMERA_HEIGHT
     if depth is not None:
-        bottom_row = np.nanmedian(object_geom.box[:, 3])
+        # The object stands on the ground until it is first carried (a lifted object's box
+        # bottom is no ground row: it would put the camera too low, the scene too small).
+        onset = np.flatnonzero(carried)
+        standing = object_geom.box[: onset[0] if len(onset) else N, 3]
+        bottom_row = np.nanmedian(standing if np.isfinite(standing).any() else object_geom.box[:, 3])
         ray = np.array([0.0, (bottom_row - K[1, 2]) / K[1, 1], 1.0])
         h0 = float(np.clip(depth * (ray @ R_wc.T) @ np.array([0.0, 0.0, -1.0]), 0.15, 1.5))
     centre = np.array([0.0, 0.0, h0])
