@@ -83,3 +83,62 @@ def test_the_hand_tip_depth_comes_from_the_masks_width_at_the_tip(axis, toleranc
     tip_pixel = project(camera, torch.as_tensor(intrinsics.K)).numpy()
     estimate = _hand_depth(_MaskGeometry(masks[:, 0].astype(float)), tip_pixel, intrinsics.K)
     assert estimate == pytest.approx(float(camera[0, 2]), rel=tolerance)
+
+
+def test_the_hand_tilt_towards_the_camera_comes_from_its_foreshortening():
+    import torch
+
+    from warpskill.contract.camera import Intrinsics
+    from warpskill.contract.geometry import frame_from_axis
+    from warpskill.engine.projection import camera_rotation
+    from warpskill.engine.raycast import raycast_masks
+    from warpskill.optimizer.stage_a import TYPICAL_HAND_TILT, _hand_tilt, _MaskGeometry
+
+    intrinsics = Intrinsics.default(120, 214)
+    height, elevation = 0.45, 0.6
+    to_camera = camera_rotation(torch.tensor(elevation, dtype=torch.float64)).numpy().T
+
+    def tilt(axis):
+        rot = frame_from_axis(np.array([axis], dtype=float))
+        masks = raycast_masks(np.array([[0.02, 0.45, 0.06]]), rot, np.zeros((1, 0, 3)), np.zeros((1, 0, 3, 3)),
+                              np.zeros((0, 3)), height, elevation, intrinsics)
+        truth = -float((to_camera @ rot[0, :, 2])[2])  # the axis's component towards the camera
+        return _hand_tilt(_MaskGeometry(masks[:, 0].astype(float)), intrinsics.K), truth
+
+    # Reaching down towards the camera: short in the image, read as tilted well past the
+    # typical forearm (perspective lengthens the near part: an underestimate, 0.61 here).
+    estimate, truth = tilt((0.3, -0.3, 0.8))
+    assert truth == pytest.approx(0.77, abs=0.01) and TYPICAL_HAND_TILT + 0.1 < estimate < truth
+    estimate, truth = tilt((1.0, -0.1, 0.2))  # across the view: long, read as the typical tilt
+    assert truth < TYPICAL_HAND_TILT and estimate == TYPICAL_HAND_TILT
+
+
+def test_a_hand_mask_one_pixel_thin_reads_as_the_typical_tilt_and_no_depth():
+    from warpskill.contract.camera import Intrinsics
+    from warpskill.optimizer.stage_a import TYPICAL_HAND_TILT, _hand_depth, _hand_tilt, _MaskGeometry
+
+    masks = np.zeros((1, 60, 107))
+    masks[0, 30, 20:60] = 1.0  # a segmenter's sliver: no width across it
+    geom, K = _MaskGeometry(masks), Intrinsics.default(60, 107).K
+    assert _hand_tilt(geom, K) == TYPICAL_HAND_TILT
+    assert _hand_depth(geom, np.array([[20.0, 30.0]]), K) is None  # the camera starts at its typical height
+
+
+def test_the_guess_leans_a_hand_reaching_down_towards_the_camera(put_onto):
+    import torch
+
+    from warpskill.optimizer.inputs import working_inputs
+    from warpskill.optimizer.stage_a import TYPICAL_HAND_TILT, initial_guess
+
+    given = working_inputs(put_onto, OptimizeConfig(), torch.device("cpu"))
+
+    def toward_camera(hand_tilt):
+        guess = initial_guess(given.masks.numpy(), given.contact_signal, given.intrinsics, put_onto.num_static,
+                              hand_tilt=hand_tilt)
+        axis = guess.hand_rot[:, :, 2].double()
+        e = guess.camera_elevation.double()
+        view = torch.stack([torch.zeros_like(e), torch.cos(e), -torch.sin(e)])  # the camera's optical axis
+        return -(axis @ view)
+
+    assert torch.allclose(toward_camera(False), torch.tensor(TYPICAL_HAND_TILT, dtype=torch.float64), atol=1e-5)
+    assert float(toward_camera(True).median()) > TYPICAL_HAND_TILT + 0.1

@@ -8,6 +8,8 @@ is a first camera and first trajectories for the physics stage (:mod:`warpskill.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import torch
 
@@ -18,7 +20,7 @@ from warpskill.engine.distances import (
     lowest_corner_height,
     support_height,
 )
-from warpskill.engine.primitives import HAND_RADIUS
+from warpskill.engine.primitives import HAND_LENGTH, HAND_RADIUS
 from warpskill.engine.projection import camera_rotation
 from warpskill.engine.rotations import rotation_from_6d, rotation_to_6d, yaw_rotation
 from warpskill.optimizer.known import measured, pin_sizes
@@ -38,6 +40,7 @@ MIN_STATIC_SIZE = 0.02  # [m]
 INITIAL_CAMERA_HEIGHT = 0.45  # [m]
 INITIAL_CAMERA_ELEVATION = 0.6  # [rad]
 FREE_MARGIN_FRAMES = 2  # frames next to a contact frame that the resting priors ignore
+TYPICAL_HAND_TILT = 1.0 / math.sqrt(5.0)  # cos of a forearm's angle to the image plane (27 deg) where masks do not tell it
 APPROACH_GROWTH = 1.25  # a carried cuboid's box this much wider than at first: it has come closer
 
 
@@ -114,6 +117,28 @@ def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, K: np.ndarray) -> f
     return float(np.median(depths)) if depths else None
 
 
+def _hand_tilt(geom: _MaskGeometry, K: np.ndarray) -> float | None:
+    """cos of the angle between the hand's axis and the image plane, from its
+    foreshortening: the median over frames of sqrt(1 - (L / (5 w))^2), with L and w the
+    mask's length and width (a uniform band's, in normalised image coordinates) and 5 the
+    cylinder's length over its diameter, within [TYPICAL_HAND_TILT, 0.9]. Perspective
+    lengthens the part nearer the camera, so the tilt comes out low (0.61 for a true 0.77;
+    0.3 for a true 0.5 on synthetic pulls): only a clearly short hand moves the guess off
+    the typical tilt. A hand cut by the border looks shorter than it is (hence the upper
+    bound)."""
+    focal = np.array([K[0, 0], K[1, 1]])
+    cosines = []
+    for k in np.flatnonzero(geom.visible):
+        points = geom.pixels(k) / focal
+        if len(points) < 6:
+            continue
+        across, main = np.linalg.eigh(np.cov(points.T))[1].T
+        width = max(_band_width(points, across), 1.0 / focal.max())  # >= 1 px
+        ratio = _band_width(points, main) / (width * HAND_LENGTH / (2.0 * HAND_RADIUS))
+        cosines.append(np.sqrt(1.0 - min(ratio, 1.0) ** 2))
+    return float(np.clip(np.median(cosines), TYPICAL_HAND_TILT, 0.9)) if cosines else None
+
+
 OBJECT_DEPTH_HYPOTHESES = ("resting depth", "on the ground", "on the static")
 """Where the object is after it was first seen (see :func:`initial_guess`); the last applies
 only to frames that :func:`warpskill.optimizer.inputs.rests_on_static` finds."""
@@ -129,6 +154,7 @@ def initial_guess(
     resting: np.ndarray | None = None,
     hand_width: bool = True,
     carried: np.ndarray | None = None,
+    hand_tilt: bool = True,
 ) -> SceneTrajectories:
     """A rough scene read off the masks' geometry, before any optimisation.
 
@@ -157,6 +183,8 @@ def initial_guess(
         hand_width: whether the hand mask's width measures its depth (not so for masks
             drawn from boxes); without it the camera starts at its typical height.
         carried: (N,) bool, frames in which the object may be in the hand (default: ``contact``).
+        hand_tilt: read the hand's tilt towards the camera off its foreshortening (with
+            ``hand_width``; :func:`_hand_tilt`), else start it at a typical forearm's.
     """
     if object_depth not in OBJECT_DEPTH_HYPOTHESES:
         raise ValueError(f"object_depth must be one of {OBJECT_DEPTH_HYPOTHESES}, not {object_depth!r}")
@@ -238,6 +266,8 @@ def initial_guess(
         object_pos = _placed_on_static(object_pos, object_size, object_geom, np.asarray(contact, bool), resting,
                                        static_pos[0], static_size[0], centre, K, R_wc)
 
+    toward = _hand_tilt(hand_geom, K) if hand_width and hand_tilt else None
+    toward = TYPICAL_HAND_TILT if toward is None else toward
     hand_pos = np.zeros((N, 3))
     hand_axis = np.zeros((N, 3))
     for k in np.flatnonzero(hand_geom.visible):
@@ -247,7 +277,7 @@ def initial_guess(
         hand_pos[k] = centre + tip_depth * _rays(tip[None], K, R_wc)[0]
         arm = hand_geom.centroid[k] - tip
         arm = arm / np.linalg.norm(arm) if np.linalg.norm(arm) > 1e-6 else np.array([0.0, 1.0])
-        hand_axis[k] = R_wc @ np.array([arm[0], arm[1], -0.5])
+        hand_axis[k] = R_wc @ np.array([*(np.sqrt(1.0 - toward**2) * arm), -toward])
     hand_pos = _fill_missing(hand_pos, hand_geom.visible)
     hand_axis = _fill_missing(hand_axis, hand_geom.visible)
     hand_rot = frame_from_axis(hand_axis)
