@@ -40,7 +40,7 @@ MIN_STATIC_SIZE = 0.02  # [m]
 INITIAL_CAMERA_HEIGHT = 0.45  # [m]
 INITIAL_CAMERA_ELEVATION = 0.6  # [rad]
 FREE_MARGIN_FRAMES = 2  # frames next to a contact frame that the resting priors ignore
-TYPICAL_HAND_TILT = 1.0 / math.sqrt(5.0)  # cos of a forearm's angle to the image plane (27 deg) where masks do not tell it
+TYPICAL_HAND_TILT = 1.0 / math.sqrt(5.0)  # a forearm's lean towards the camera (sin of 27 deg out of the image plane)
 APPROACH_GROWTH = 1.25  # a carried cuboid's box this much wider than at first: it has come closer
 
 
@@ -90,6 +90,14 @@ def _band_width(points: np.ndarray, axis: np.ndarray | None = None) -> float:
     return float(np.sqrt(12.0 * variance))
 
 
+def _band_axes(pixels: np.ndarray, focal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pixel centres (M, 2) in normalised image coordinates (over the focal lengths ``focal``
+    (2,)), and the unit axes (2,) across and along their band."""
+    points = pixels / focal
+    across, main = np.linalg.eigh(np.cov(points.T))[1].T
+    return points, across, main
+
+
 def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, K: np.ndarray) -> float | None:
     """Median camera depth [m] of the hand tip, from the mask's width at the tip.
 
@@ -107,8 +115,7 @@ def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, K: np.ndarray) -> f
         if len(pixels) < 6:
             continue
         tip = pixels[np.argmin(((pixels - targets_of[k]) ** 2).sum(1))] / focal
-        points = pixels / focal
-        across, main = np.linalg.eigh(np.cov(points.T))[1].T
+        points, across, main = _band_axes(pixels, focal)
         along = (points - tip) @ main
         along = along if np.median(along) >= 0 else -along  # from the tip up the hand
         slab = points[(along >= 0) & (along <= 0.5 * _band_width(points))]
@@ -118,25 +125,25 @@ def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, K: np.ndarray) -> f
 
 
 def _hand_tilt(geom: _MaskGeometry, K: np.ndarray) -> float | None:
-    """cos of the angle between the hand's axis and the image plane, from its
-    foreshortening: the median over frames of sqrt(1 - (L / (5 w))^2), with L and w the
-    mask's length and width (a uniform band's, in normalised image coordinates) and 5 the
-    cylinder's length over its diameter, within [TYPICAL_HAND_TILT, 0.9]. Perspective
-    lengthens the part nearer the camera, so the tilt comes out low (0.61 for a true 0.77;
-    0.3 for a true 0.5 on synthetic pulls): only a clearly short hand moves the guess off
-    the typical tilt. A hand cut by the border looks shorter than it is (hence the upper
-    bound)."""
+    """The hand's lean towards the camera (its axis's component along the view: the sine of
+    its angle out of the image plane), from its foreshortening: the median over frames of
+    sqrt(1 - (L / (5 w))^2), with L and w the mask's length and width (a uniform band's, in
+    normalised image coordinates) and 5 the cylinder's length over its diameter, within
+    [TYPICAL_HAND_TILT, 0.9]. Perspective lengthens the part nearer the camera, so the lean
+    comes out low (0.61 for a true 0.77; 0.3 for a true 0.5 on synthetic pulls): only a
+    clearly short hand moves the guess off the typical lean. A hand cut by the border looks
+    shorter than it is (hence the upper bound)."""
     focal = np.array([K[0, 0], K[1, 1]])
-    cosines = []
+    leans = []
     for k in np.flatnonzero(geom.visible):
-        points = geom.pixels(k) / focal
-        if len(points) < 6:
+        pixels = geom.pixels(k)
+        if len(pixels) < 6:
             continue
-        across, main = np.linalg.eigh(np.cov(points.T))[1].T
+        points, across, main = _band_axes(pixels, focal)
         width = max(_band_width(points, across), 1.0 / focal.max())  # >= 1 px
         ratio = _band_width(points, main) / (width * HAND_LENGTH / (2.0 * HAND_RADIUS))
-        cosines.append(np.sqrt(1.0 - min(ratio, 1.0) ** 2))
-    return float(np.clip(np.median(cosines), TYPICAL_HAND_TILT, 0.9)) if cosines else None
+        leans.append(np.sqrt(1.0 - min(ratio, 1.0) ** 2))
+    return float(np.clip(np.median(leans), TYPICAL_HAND_TILT, 0.9)) if leans else None
 
 
 OBJECT_DEPTH_HYPOTHESES = ("resting depth", "on the ground", "on the static")
@@ -183,7 +190,7 @@ def initial_guess(
         hand_width: whether the hand mask's width measures its depth (not so for masks
             drawn from boxes); without it the camera starts at its typical height.
         carried: (N,) bool, frames in which the object may be in the hand (default: ``contact``).
-        hand_tilt: read the hand's tilt towards the camera off its foreshortening (with
+        hand_tilt: read the hand's lean towards the camera off its foreshortening (with
             ``hand_width``; :func:`_hand_tilt`), else start it at a typical forearm's.
     """
     if object_depth not in OBJECT_DEPTH_HYPOTHESES:
