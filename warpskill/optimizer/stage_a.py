@@ -90,12 +90,18 @@ def _band_width(points: np.ndarray, axis: np.ndarray | None = None) -> float:
     return float(np.sqrt(12.0 * variance))
 
 
-def _band_axes(pixels: np.ndarray, focal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pixel centres (M, 2) in normalised image coordinates (over the focal lengths ``focal``
-    (2,)), and the unit axes (2,) across and along their band."""
-    points = pixels / focal
-    across, main = np.linalg.eigh(np.cov(points.T))[1].T
-    return points, across, main
+def _hand_bands(geom: _MaskGeometry, K: np.ndarray):
+    """Per frame whose hand mask holds at least 6 pixels: ``(k, pixels, points, across, main,
+    thinnest)``: its pixel centres (M, 2) [px], the same in normalised image coordinates
+    (over the focal lengths: pixels need not be square), the unit axes (2,) across and along
+    the band, and one pixel's width in those coordinates (the least width to read)."""
+    focal = np.array([K[0, 0], K[1, 1]])
+    for k in np.flatnonzero(geom.visible):
+        pixels = geom.pixels(k)
+        if len(pixels) >= 6:
+            points = pixels / focal
+            across, main = np.linalg.eigh(np.cov(points.T))[1].T
+            yield k, pixels, points, across, main, 1.0 / focal.max()
 
 
 def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, K: np.ndarray) -> float | None:
@@ -108,19 +114,14 @@ def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, K: np.ndarray) -> f
     object's centroid): farther up, a hand reaching forwards or down comes closer to the
     camera and widens.
     """
-    focal = np.array([K[0, 0], K[1, 1]])
     depths = []
-    for k in np.flatnonzero(geom.visible):
-        pixels = geom.pixels(k)
-        if len(pixels) < 6:
-            continue
-        tip = pixels[np.argmin(((pixels - targets_of[k]) ** 2).sum(1))] / focal
-        points, across, main = _band_axes(pixels, focal)
+    for k, pixels, points, across, main, thinnest in _hand_bands(geom, K):
+        tip = points[np.argmin(((pixels - targets_of[k]) ** 2).sum(1))]
         along = (points - tip) @ main
         along = along if np.median(along) >= 0 else -along  # from the tip up the hand
         slab = points[(along >= 0) & (along <= 0.5 * _band_width(points))]
         if len(slab) >= 6:
-            depths.append(2.0 * HAND_RADIUS / max(_band_width(slab, across), 1.0 / focal.max()))  # >= 1 px
+            depths.append(2.0 * HAND_RADIUS / max(_band_width(slab, across), thinnest))
     return float(np.median(depths)) if depths else None
 
 
@@ -133,14 +134,9 @@ def _hand_tilt(geom: _MaskGeometry, K: np.ndarray) -> float | None:
     comes out low (0.61 for a true 0.77; 0.3 for a true 0.5 on synthetic pulls): only a
     clearly short hand moves the guess off the typical lean. A hand cut by the border looks
     shorter than it is (hence the upper bound)."""
-    focal = np.array([K[0, 0], K[1, 1]])
     leans = []
-    for k in np.flatnonzero(geom.visible):
-        pixels = geom.pixels(k)
-        if len(pixels) < 6:
-            continue
-        points, across, main = _band_axes(pixels, focal)
-        width = max(_band_width(points, across), 1.0 / focal.max())  # >= 1 px
+    for _, _, points, across, main, thinnest in _hand_bands(geom, K):
+        width = max(_band_width(points, across), thinnest)
         ratio = _band_width(points, main) / (width * HAND_LENGTH / (2.0 * HAND_RADIUS))
         leans.append(np.sqrt(1.0 - min(ratio, 1.0) ** 2))
     return float(np.clip(np.median(leans), TYPICAL_HAND_TILT, 0.9)) if leans else None
