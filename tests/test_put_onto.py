@@ -1,22 +1,28 @@
 """On top of the static box or behind it: the masks say where it may be, the physics decides."""
 
 import importlib
+import math
 
 import numpy as np
 import pytest
 import torch
 
 from warpskill.engine.distances import support_height
+from warpskill.engine.records import Rollout
+from warpskill.engine.rotations import yaw_rotation
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.inputs import carried_into_view, cut_by_static, rests_on_static
+from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.pipeline import optimize
 from warpskill.optimizer.scene import (
     SceneTrajectories,
     ends_behind_static,
     in_front_of_back_penalty,
+    scene_priors,
     static_in_object_penalty,
 )
-from warpskill.optimizer.stage_a import initial_guess
+from warpskill.optimizer.stage_a import initial_guess, initial_objective
+from warpskill.optimizer.stage_b import PhysicalRollout, physical_objective
 from warpskill.optimizer.weights import LossWeights
 from warpskill.synthetic import make_demonstration
 
@@ -66,17 +72,36 @@ def test_an_object_cut_at_the_static_box_top_edge_stands_behind_it():
 
 def test_the_behind_prior_pushes_the_object_past_the_static_box_back_only_in_its_frames():
     weights = LossWeights()
-    scene = _one_box_scene(0.25, [0.1, 0.1, 0.1])  # on top: its centre over the box, 15 cm short of the back
+    scene = _one_box_scene(0.25, [0.1, 0.1, 0.1])  # on top: its centre 15 cm short of the back, its front 20
     frames = torch.tensor([0.0, 1.0])
     assert float(in_front_of_back_penalty(scene, frames, weights)) == pytest.approx(
         weights.penetration * 0.15**2 / 2, rel=1e-5)
+    assert float(in_front_of_back_penalty(scene, frames, weights, whole_object=True)) == pytest.approx(
+        weights.penetration * 0.20**2 / 2, rel=1e-5)
     assert float(in_front_of_back_penalty(scene, torch.zeros(2), weights)) == 0.0
     scene.object_pos.requires_grad_(True)
     in_front_of_back_penalty(scene, frames, weights).backward()
     assert scene.object_pos.grad[1, 1] < 0 and scene.object_pos.grad[0].abs().sum() == 0  # descent: farther back
     behind = _one_box_scene(0.05, [0.1, 0.1, 0.1])
     behind.object_pos[:, 1] = 0.3
-    assert float(in_front_of_back_penalty(behind, frames, weights)) == 0.0
+    assert float(in_front_of_back_penalty(behind, frames, weights, whole_object=True)) == 0.0
+
+
+def test_the_physics_stage_asks_the_whole_object_past_the_back_the_per_frame_fit_its_centre():
+    weights = LossWeights()
+    frames = torch.tensor([0.0, 1.0])
+    on_the_edge = _one_box_scene(0.25, [0.1, 0.1, 0.1])
+    on_the_edge.object_pos[:, 1] = 0.17  # centre past the back (0.15), front still over the box
+    assert scene_priors(on_the_edge, weights, behind=frames)["behind the static"] == 0.0
+    assert float(scene_priors(on_the_edge, weights, behind=frames, whole_object_behind=True)["behind the static"]) \
+        == pytest.approx(weights.penetration * 0.03**2 / 2, rel=1e-4)
+    turned = _one_box_scene(0.05, [0.1, 0.3, 0.1])
+    turned.object_rot = yaw_rotation(torch.full((2,), math.pi / 2))  # its 30 cm side across the view: 10 cm deep
+    turned.object_pos[:, 1] = 0.21
+    assert float(in_front_of_back_penalty(turned, frames, weights, whole_object=True)) == 0.0
+    turned.object_rot = torch.eye(3).expand(2, 3, 3)  # 30 cm deep: its front 9 cm short of the back
+    assert float(in_front_of_back_penalty(turned, frames, weights, whole_object=True)) == pytest.approx(
+        weights.penetration * 0.09**2 / 2, rel=1e-4)
 
 
 def test_no_static_box_or_no_release_gives_no_frames():
@@ -181,3 +206,20 @@ def test_the_best_simulation_is_the_best_fit_the_masks_do_not_contradict():
     assert pipeline.best_simulation([2.6, 2.8], [True, False]) == 1
     assert pipeline.best_simulation([2.6, 2.8], [False, False]) == 0
     assert pipeline.best_simulation([2.6, 2.8], [True, True]) == 0
+
+
+def test_only_the_physics_objective_asks_an_object_on_the_box_edge_to_move_back():
+    weights, frames = LossWeights(), torch.tensor([0.0, 1.0])
+    scene = _one_box_scene(0.25, [0.1, 0.1, 0.1])
+    scene.object_pos[:, 1] = 0.17  # centre past the back (0.15), front over the box
+    masks = torch.zeros(2, 3, 8, 8)
+    targets = MaskTargets(masks)
+    zero = torch.zeros(1, 2)
+    rollout = Rollout(hand_pos=scene.hand_pos[None], hand_rot=scene.hand_rot[None], grasp=zero, grasped=zero,
+                      tip_distance=zero, object_pos=scene.object_pos[None], object_rot=scene.object_rot[None],
+                      object_vel=torch.zeros(1, 2, 3), object_ang_vel=torch.zeros(1, 2, 3))
+    physics = physical_objective(PhysicalRollout(scene, rollout.map(lambda x: x[0]), torch.zeros(3), torch.zeros(2)),
+                                 masks, targets, torch.zeros(2), torch.ones(2), weights, behind=frames)
+    fit = initial_objective(scene, masks, targets, torch.zeros(2), 12.0, weights, behind=frames)
+    assert float(physics["behind the static"]) > 0.0
+    assert float(fit["behind the static"]) == 0.0

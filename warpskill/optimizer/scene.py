@@ -97,11 +97,12 @@ def camera_height_prior(scene: SceneTrajectories, weights: LossWeights) -> torch
 
 def scene_priors(
     scene: SceneTrajectories, weights: LossWeights, supported: torch.Tensor | None = None,
-    behind: torch.Tensor | None = None,
+    behind: torch.Tensor | None = None, *, whole_object_behind: bool = False,
 ) -> dict[str, torch.Tensor]:
     """The terms both stages add on the scene itself: the camera-height prior, the static boxes
     held out of the object and, where given, the placements "on the static" (``supported``,
-    (N,)) and "behind the static" (``behind``, (N,))."""
+    (N,)) and "behind the static" (``behind``, (N,); with ``whole_object_behind``, the
+    object's front rather than its centre: see :func:`in_front_of_back_penalty`)."""
     terms = {
         "camera height": camera_height_prior(scene, weights),
         "static in object": static_in_object_penalty(scene, weights),
@@ -109,7 +110,7 @@ def scene_priors(
     if supported is not None:
         terms["on the static"] = off_static_penalty(scene, supported, weights)
     if behind is not None:
-        terms["behind the static"] = in_front_of_back_penalty(scene, behind, weights)
+        terms["behind the static"] = in_front_of_back_penalty(scene, behind, weights, whole_object_behind)
     return terms
 
 
@@ -121,11 +122,22 @@ def off_static_penalty(scene: SceneTrajectories, supported: torch.Tensor, weight
     return weights.penetration * (supported.to(outside) * outside).mean()
 
 
-def in_front_of_back_penalty(scene: SceneTrajectories, behind: torch.Tensor, weights: LossWeights) -> torch.Tensor:
-    """How far the object's centre lies in front of the first static box's back [m, squared,
-    weighted] in the ``behind`` (N,) frames: where the static box hides the object's lower
-    part, the object stands behind it (the camera looks along +y)."""
-    short = (static_back(scene) - scene.object_pos[:, 1]).clamp_min(0.0).square()
+def in_front_of_back_penalty(
+    scene: SceneTrajectories, behind: torch.Tensor, weights: LossWeights, whole_object: bool = False
+) -> torch.Tensor:
+    """How far the object lies in front of the first static box's back [m, squared, weighted]
+    in the ``behind`` (N,) frames: where the static box hides the object's lower part, the
+    object stands behind it (the camera looks along +y).
+
+    Measured at the object's centre, or with ``whole_object`` at its front: the physics
+    stage asks for the whole object past the back, because a released object whose front
+    is still over the box lands on the box's edge; the per-frame fit, which has no
+    physics, asks only for its centre.
+    """
+    front = scene.object_pos[:, 1]
+    if whole_object:
+        front = front - 0.5 * (scene.object_rot[:, 1, :].abs() * scene.object_size).sum(-1)  # minus its half depth
+    short = (static_back(scene) - front).clamp_min(0.0).square()
     return weights.penetration * (behind.to(short) * short).mean()
 
 

@@ -317,4 +317,4 @@ def physical_objective(
             + ((1 - contact) * (rollout.grasp + margin).clamp_min(0.0) ** 2).mean()
         ),
         "stability": weights.stability * result.still_velocity.mean(),
-    } | scene_priors(result.scene, weights, supported, behind)
+    } | scene_priors(result.scene, weights, supported, behind, whole_object_behind=True)
