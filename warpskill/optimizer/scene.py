@@ -134,10 +134,8 @@ def in_front_of_back_penalty(
     is still over the box lands on the box's edge; the per-frame fit, which has no
     physics, asks only for its centre.
     """
-    front = scene.object_pos[:, 1]
-    if whole_object:
-        front = front - 0.5 * (scene.object_rot[:, 1, :].abs() * scene.object_size).sum(-1)  # minus its half depth
-    short = (static_back(scene) - front).clamp_min(0.0).square()
+    half_depth = 0.5 * (scene.object_rot[:, 1, :].abs() * scene.object_size).sum(-1) if whole_object else 0.0
+    short = (static_back(scene) - (scene.object_pos[:, 1] - half_depth)).clamp_min(0.0).square()
     return weights.penetration * (behind.to(short) * short).mean()
 
 
