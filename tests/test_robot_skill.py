@@ -140,12 +140,13 @@ def test_cli_object_size_and_keep_size(tmp_path, capsys):
     assert "no feasible grasp: the 0.264 x 0.234 x 0.050 m cuboid is wider than the gripper's 0.074 m" in err
 
 
-def test_a_tilted_cuboid_rests_on_a_face():
+@pytest.mark.parametrize("degrees", [20.0, 5.0])  # a clear tilt, and one that stood a tall pillar on its edge
+def test_a_tilted_cuboid_rests_on_a_face(degrees):
     from warpskill.contract.geometry import cuboid_corners
     from warpskill.robot import fit_sizes
 
     recon = truth("push_right_to_left", 0)
-    a = np.radians(20.0)  # more than UPRIGHT_TILT
+    a = np.radians(degrees)
     tilt = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(a), -np.sin(a)], [0.0, np.sin(a), np.cos(a)]])
     tilted = dataclasses.replace(recon, object_rot=tilt @ recon.object_rot)
     fitted, note = fit_sizes(tilted)

@@ -6,8 +6,8 @@ object-centre path in the horizontal plane and every static box's footprint cent
 heights follow the sizes, so that each static box keeps its bottom where it was and the
 object keeps its gap to its support (the table or a static top; while held, the support's
 change is blended linearly from the grasp to the release). Until the contact onset the
-object is made to rest on a face (:func:`upright`: a reconstruction's clear tilt would
-topple it in the replay before the robot reaches it).
+object is made to rest on a face (:func:`upright`: a reconstruction's tilt would stand it
+on an edge, and a tall one would fall in the replay before the robot reaches it).
 
 An object already held in the first frame was carried into view (or moved before it) and
 never seen resting: :func:`rest_until` makes the robot's version of such a demonstration,
@@ -37,9 +37,6 @@ __all__ = ["SUBSTITUTE_WIDTH", "USABLE_OPENING", "fit_sizes", "needs_substitute"
 USABLE_OPENING = MAX_OPENING - FIT_MARGIN
 """[m] widest object edge the gripper closes on."""
 
-UPRIGHT_TILT = 10.0
-"""[deg] a cuboid tilted further than this from resting on a face is set upright."""
-
 SUBSTITUTE_WIDTH = USABLE_OPENING - 0.01
 """[m] horizontal extents of a substitute object (the usable opening less a margin)."""
 
@@ -65,17 +62,15 @@ def _support(xy: np.ndarray, radius: float, static_pos, static_rot, static_size)
 def upright(rot: np.ndarray, up: int | None = None) -> np.ndarray:
     """(F, 3, 3) the rotations ``rot`` turned so that the cuboid rests on a face, heading kept.
 
-    Where the cuboid axis ``up`` (default: each frame's axis nearest the world's vertical)
-    is tilted by more than :data:`UPRIGHT_TILT`, it becomes vertical and the next axis
-    keeps its horizontal direction. A cuboid can only rest on a face: a clearly tilted
-    reconstruction would topple in the replay before the robot reaches it (a slight tilt
-    just settles).
+    The cuboid axis ``up`` (default: each frame's axis nearest the world's vertical) becomes
+    vertical and the next axis keeps its horizontal direction. A cuboid can only rest on a
+    face; a reconstruction's tilt, however slight, stands it on an edge, from which a tall
+    one falls in the replay before the robot reaches it (a 53 cm pillar tilted 5 degrees
+    toppled in Newton).
     """
     out = np.array(rot, dtype=float, copy=True)
     for f, R in enumerate(rot):
         i = int(np.argmax(np.abs(R[2]))) if up is None else up
-        if abs(R[2, i]) >= math.cos(math.radians(UPRIGHT_TILT)):
-            continue  # settles onto its face in the replay
         j, k = (i + 1) % 3, (i + 2) % 3
         col_i = np.array([0.0, 0.0, math.copysign(1.0, R[2, i])])
         col_j = R[:, j] - (R[:, j] @ col_i) * col_i
