@@ -80,28 +80,26 @@ def _rays(pixels: np.ndarray, K: np.ndarray, R_wc: np.ndarray) -> np.ndarray:
     return d @ R_wc.T
 
 
-def _band_width(points: np.ndarray, axis: np.ndarray | None = None) -> float:
-    """Width of a band of points (M, 2): sqrt(12) x their std across its main axis, or along
-    ``axis`` (2,) when given (a uniform band's width, in the points' units)."""
-    if axis is None:
-        variance = np.linalg.eigvalsh(np.cov(points.T))[0]
-    else:
-        variance = float(np.var(points @ axis))
-    return float(np.sqrt(12.0 * variance))
+def _band_width(points: np.ndarray, axis: np.ndarray) -> float:
+    """Width of a band of points (M, 2) along ``axis`` (2,): sqrt(12) x their std (a uniform
+    band's width, in the points' units)."""
+    return float(np.sqrt(12.0 * np.var(points @ axis)))
 
 
 def _hand_bands(geom: _MaskGeometry, K: np.ndarray):
-    """Per frame whose hand mask holds at least 6 pixels: ``(k, pixels, points, across, main,
-    thinnest)``: its pixel centres (M, 2) [px], the same in normalised image coordinates
-    (over the focal lengths: pixels need not be square), the unit axes (2,) across and along
-    the band, and one pixel's width in those coordinates (the least width to read)."""
+    """Per frame whose hand mask holds at least 6 pixels: ``(k, pixels, points, width, across,
+    main, thinnest)``: its pixel centres (M, 2) [px], the same in normalised image coordinates
+    (over the focal lengths: pixels need not be square), the band's width across its main axis
+    (sqrt(12) x the smaller principal std), the unit axes (2,) across and along the band, and
+    one pixel's width in those coordinates (the least width to read)."""
     focal = np.array([K[0, 0], K[1, 1]])
     for k in np.flatnonzero(geom.visible):
         pixels = geom.pixels(k)
         if len(pixels) >= 6:
             points = pixels / focal
-            across, main = np.linalg.eigh(np.cov(points.T))[1].T
-            yield k, pixels, points, across, main, 1.0 / focal.max()
+            variances, axes = np.linalg.eigh(np.cov(points.T))
+            across, main = axes.T
+            yield k, pixels, points, float(np.sqrt(12.0 * variances[0])), across, main, 1.0 / focal.max()
 
 
 def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, K: np.ndarray) -> float | None:
@@ -115,11 +113,11 @@ def _hand_depth(geom: _MaskGeometry, targets_of: np.ndarray, K: np.ndarray) -> f
     camera and widens.
     """
     depths = []
-    for k, pixels, points, across, main, thinnest in _hand_bands(geom, K):
+    for k, pixels, points, width, across, main, thinnest in _hand_bands(geom, K):
         tip = points[np.argmin(((pixels - targets_of[k]) ** 2).sum(1))]
         along = (points - tip) @ main
         along = along if np.median(along) >= 0 else -along  # from the tip up the hand
-        slab = points[(along >= 0) & (along <= 0.5 * _band_width(points))]
+        slab = points[(along >= 0) & (along <= 0.5 * width)]
         if len(slab) >= 6:
             depths.append(2.0 * HAND_RADIUS / max(_band_width(slab, across), thinnest))
     return float(np.median(depths)) if depths else None
@@ -135,7 +133,7 @@ def _hand_tilt(geom: _MaskGeometry, K: np.ndarray) -> float | None:
     clearly short hand moves the guess off the typical lean. A hand cut by the border looks
     shorter than it is (hence the upper bound)."""
     leans = []
-    for _, _, points, across, main, thinnest in _hand_bands(geom, K):
+    for _, _, points, _, across, main, thinnest in _hand_bands(geom, K):
         width = max(_band_width(points, across), thinnest)
         ratio = _band_width(points, main) / (width * HAND_LENGTH / (2.0 * HAND_RADIUS))
         leans.append(np.sqrt(1.0 - min(ratio, 1.0) ** 2))
