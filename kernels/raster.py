@@ -15,11 +15,14 @@ p = (j + 0.5, i + 0.5):
     v_k  = c_k prod_{l: z_l < z_k} (1 - c_l)            visible mask; depth only where two
                                                         or more layers cover p
 
-:func:`rasterize_backward` recomputes a tile per primitive, turns dL/dv into dL/dsd_k and
-reduces, per hull edge e, the moments (sum g, sum g (p - a_e)) over the pixels whose
-distance edge is e (a_e the edge's first vertex), with one atomic add per (tile, primitive,
-edge). Depth order carries no gradient. All kernels are forward-only; the Torch bridge
-(``warpskill.engine.rendering``) turns moments into vertex gradients.
+:func:`rasterize` also keeps each pixel's layers: the bit mask of the primitives covering
+it, their coverages c_k and, where two or more cover it, their depths z_k.
+:func:`rasterize_backward` recomputes sd_k over a tile per primitive, reads the other layers
+kept at the pixel, turns dL/dv into dL/dsd_k and reduces, per hull edge e, the moments
+(sum g, sum g (p - a_e)) over the pixels whose distance edge is e (a_e the edge's first
+vertex), with one atomic add per (tile, primitive, edge). Depth order carries no gradient.
+All kernels are forward-only; the Torch bridge (``warpskill.engine.rendering``) turns
+moments into vertex gradients.
 """
 
 from __future__ import annotations
@@ -351,6 +354,9 @@ def _forward(
     plane_in: wp.array3d(dtype=wp.vec4),
     # Data out:
     mask_out: wp.array4d(dtype=float),
+    covered_out: wp.array3d(dtype=int),
+    coverage_out: wp.array4d(dtype=float),
+    depth_out: wp.array4d(dtype=float),
 ):
     f, ty, tx = wp.tid()
     H, W = mask_out.shape[2], mask_out.shape[3]
@@ -363,10 +369,12 @@ def _forward(
         for j in range(x0, wp.min(x0 + TILE, W)):
             p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
             covered, c, sd, edge = _layers(line_in, bound_in, f, partial, full, edges, p, sigma)
+            covered_out[f, i, j] = covered
             if covered & (covered - 1) == 0:  # at most one layer: no depth test
                 if covered != 0:
                     k = _lowest(covered)
                     mask_out[f, k, i, j] = c[k]
+                    coverage_out[f, k, i, j] = c[k]
             else:
                 z = _depths(intrinsics, vert_in, hull_in, count_in, plane_count_in, plane_in, f, covered, sd, edge, p)
                 rest = covered
@@ -374,12 +382,13 @@ def _forward(
                     k = _lowest(rest)
                     rest = rest & (rest - 1)
                     mask_out[f, k, i, j] = c[k] * _transmittance(c, z, covered, k, -1)
+                    coverage_out[f, k, i, j] = c[k]
+                    depth_out[f, k, i, j] = z[k]
 
 
 @wp.kernel
 def _backward(
     # Model:
-    intrinsics: wp.vec4,
     sigma: float,
     # Data in:
     vert_in: wp.array3d(dtype=wp.vec2),
@@ -387,8 +396,9 @@ def _backward(
     count_in: wp.array2d(dtype=int),
     line_in: wp.array3d(dtype=wp.vec3),
     bound_in: wp.array2d(dtype=wp.vec4),
-    plane_count_in: wp.array2d(dtype=int),
-    plane_in: wp.array3d(dtype=wp.vec4),
+    covered_in: wp.array3d(dtype=int),
+    coverage_in: wp.array4d(dtype=float),
+    depth_in: wp.array4d(dtype=float),
     mask_grad_in: wp.array4d(dtype=float),
     # Data out:
     moment_out: wp.array3d(dtype=wp.vec3),
@@ -414,15 +424,17 @@ def _backward(
                 if sdk <= limit and sdk >= -limit:
                     ck = 1.0 / (1.0 + wp.exp(sdk / sigma))
                     dc = mask_grad_in[f, k, i, j]
-                    others, c, sd, edge = _layers(line_in, bound_in, f, partial ^ bit, full, edges, p, sigma)
+                    covered = covered_in[f, i, j]
+                    others = covered ^ bit
                     if others != 0:
-                        covered = others | bit
-                        c[k] = ck
-                        sd[k] = sdk
-                        edge[k] = ek
-                        z = _depths(
-                            intrinsics, vert_in, hull_in, count_in, plane_count_in, plane_in, f, covered, sd, edge, p
-                        )
+                        c = _LAYERS()
+                        z = _LAYERS()
+                        rest = covered
+                        while rest != 0:
+                            m = _lowest(rest)
+                            rest = rest & (rest - 1)
+                            c[m] = coverage_in[f, m, i, j]
+                            z[m] = depth_in[f, m, i, j]
                         dc = dc * _transmittance(c, z, covered, k, -1)
                         rest = others
                         while rest != 0:
@@ -472,27 +484,34 @@ def rasterize(
     plane_count: wp.array,
     plane: wp.array,
     mask: wp.array,
+    covered: wp.array,
+    coverage: wp.array,
+    depth: wp.array,
 ) -> None:
-    """Visible soft masks (F, P, H, W) into the zero-initialised ``mask``."""
+    """Visible soft masks (F, P, H, W) into the zero-initialised ``mask``, and the layers the
+    backward pass reads: per pixel the bit mask of the covering primitives into the
+    zero-initialised ``covered`` (F, H, W), their coverages into ``coverage`` (F, P, H, W)
+    and, where two or more cover a pixel, their depths [m] into ``depth`` (F, P, H, W)."""
     dim = (mask.shape[0], *_tiles(mask.shape[2], mask.shape[3]))
     inputs = [intrinsics, sigma, vertices, hull, count, line, bound, plane_count, plane]
-    wp.launch(_forward, dim=dim, inputs=inputs, outputs=[mask], device=mask.device)
+    wp.launch(_forward, dim=dim, inputs=inputs, outputs=[mask, covered, coverage, depth], device=mask.device)
 
 
 def rasterize_backward(
-    intrinsics: wp.vec4,
     sigma: float,
     vertices: wp.array,
     hull: wp.array,
     count: wp.array,
     line: wp.array,
     bound: wp.array,
-    plane_count: wp.array,
-    plane: wp.array,
+    covered: wp.array,
+    coverage: wp.array,
+    depth: wp.array,
     mask_grad: wp.array,
     moment: wp.array,
 ) -> None:
-    """Per hull edge moments (sum g, sum g (p - a)) of g = dL/dsd into the zero-initialised ``moment``."""
+    """Per hull edge moments (sum g, sum g (p - a)) of g = dL/dsd into the zero-initialised
+    ``moment``, from the hulls and the layers :func:`rasterize` kept."""
     dim = (mask_grad.shape[0], mask_grad.shape[1], *_tiles(mask_grad.shape[2], mask_grad.shape[3]))
-    inputs = [intrinsics, sigma, vertices, hull, count, line, bound, plane_count, plane, mask_grad]
+    inputs = [sigma, vertices, hull, count, line, bound, covered, coverage, depth, mask_grad]
     wp.launch(_backward, dim=dim, inputs=inputs, outputs=[moment], device=moment.device)

@@ -21,7 +21,7 @@ from warpskill.engine.primitives import (
     prism_planes,
 )
 from warpskill.engine.raycast import raycast_masks
-from warpskill.engine.rendering import _Buffers, _SoftSilhouettes, render_silhouettes
+from warpskill.engine.rendering import _Buffers, _Layers, _SoftSilhouettes, render_silhouettes
 
 HEIGHT, ELEVATION = 0.30, 0.50  # camera [m], [rad]
 FULL = Intrinsics.default(240, 427)
@@ -331,8 +331,11 @@ def test_edge_moments_match_dense_reference(dense_case):
     views = buffers.views()
     visible = wp.from_torch(c["visible"].to(torch.int32))
     raster.build_hulls(wp.from_torch(c["sides"]), raster.CUTOFF * c["sigma"], visible, *views[:5])
+    layers = _Layers(torch.zeros(F, H, W, dtype=torch.int32), torch.empty(F, P, H, W), torch.empty(F, P, H, W))
+    mask = wp.from_torch(torch.zeros(F, P, H, W))
+    raster.rasterize(wp.vec4(*c["camera_vec"]), c["sigma"], *views, mask, *layers.views())
     grad = wp.from_torch(c["weights"].to(torch.float32).contiguous())  # dL/dv of L = sum(weights * v)
-    raster.rasterize_backward(wp.vec4(*c["camera_vec"]), c["sigma"], *views, grad, wp.from_torch(moment, dtype=wp.vec3))
+    raster.rasterize_backward(c["sigma"], *views[:5], *layers.views(), grad, wp.from_torch(moment, dtype=wp.vec3))
 
     v, u = torch.meshgrid(torch.arange(H) + 0.5, torch.arange(W) + 0.5, indexing="ij")
     p = torch.stack([u, v], -1).reshape(-1, 2).double()

@@ -123,30 +123,34 @@ class _SoftSilhouettes(torch.autograd.Function):
             plane=planes.to(torch.float32).contiguous(),
         )
         mask = torch.zeros(F, P, *image_size, **f32)
+        layers = _Layers(  # read only where ``covered`` says a layer is
+            covered=torch.zeros(F, *image_size, **i32),
+            coverage=torch.empty(F, P, *image_size, **f32),
+            depth=torch.empty(F, P, *image_size, **f32),
+        )
         with warp_scope(device):
             views = buffers.views()
             visible = as_warp(visible.to(torch.int32))
             raster.build_hulls(as_warp(sides), raster.CUTOFF * sigma, visible, *views[:5])
-            raster.rasterize(wp.vec4(*camera_vec), sigma, *views, as_warp(mask))
-        ctx.save_for_backward(pixels.detach(), *buffers)
-        ctx.camera_vec, ctx.sigma = camera_vec, sigma
+            raster.rasterize(wp.vec4(*camera_vec), sigma, *views, as_warp(mask), *layers.views())
+        ctx.save_for_backward(pixels.detach(), *buffers[:5], *layers)
+        ctx.sigma = sigma
         return mask
 
     @staticmethod
     def backward(ctx, mask_grad):
         pixels, *saved = ctx.saved_tensors
-        buffers = _Buffers(*saved)
+        buffers, layers = _Buffers(*saved[:5], None, None), _Layers(*saved[5:])
         moment = torch.zeros(*buffers.hull.shape, 3, dtype=torch.float32, device=pixels.device)
         with warp_scope(pixels.device):
             grad = as_warp(mask_grad.to(torch.float32))
-            raster.rasterize_backward(
-                wp.vec4(*ctx.camera_vec), ctx.sigma, *buffers.views(), grad, as_warp(moment, wp.vec3)
-            )
+            raster.rasterize_backward(ctx.sigma, *buffers.views(), *layers.views(), grad, as_warp(moment, wp.vec3))
         return _vertex_gradients(pixels, buffers.hull, buffers.count, moment), None, None, None, None, None, None
 
 
 class _Buffers(NamedTuple):
-    """Raster buffers shared by the forward and backward kernels, in their argument order."""
+    """Raster buffers of the forward kernels, in their argument order (the backward kernel
+    reads the first five; the others may be None there)."""
 
     vertices: torch.Tensor  # (F, P, V, 2) float32 projected vertices [px]
     hull: torch.Tensor  # (F, P, MAX_HULL) int32 hull vertex indices, counter-clockwise
@@ -157,16 +161,21 @@ class _Buffers(NamedTuple):
     plane: torch.Tensor  # (F, P, 26, 4) float32 face planes, camera-facing first
 
     def views(self) -> list[wp.array]:
+        """Zero-copy Warp views (of the fields that are set)."""
+        types = (wp.vec2, None, None, wp.vec3, wp.vec4, None, wp.vec4)
+        return [as_warp(buffer, dtype) for buffer, dtype in zip(self, types) if buffer is not None]
+
+
+class _Layers(NamedTuple):
+    """What the forward raster keeps per pixel for the backward pass."""
+
+    covered: torch.Tensor  # (F, H, W) int32 bit mask of the primitives covering the pixel
+    coverage: torch.Tensor  # (F, P, H, W) float32 their coverages c_k
+    depth: torch.Tensor  # (F, P, H, W) float32 their depths [m], where two or more cover it
+
+    def views(self) -> list[wp.array]:
         """Zero-copy Warp views."""
-        return [
-            as_warp(self.vertices, wp.vec2),
-            as_warp(self.hull),
-            as_warp(self.count),
-            as_warp(self.line, wp.vec3),
-            as_warp(self.bound, wp.vec4),
-            as_warp(self.plane_count),
-            as_warp(self.plane, wp.vec4),
-        ]
+        return [as_warp(layer) for layer in self]
 
 
 def _vertex_gradients(
