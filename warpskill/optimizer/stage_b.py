@@ -118,9 +118,12 @@ class PhysicalScene(torch.nn.Module):
         # itself disagrees with the contact signal, and moving the whole path would undo its fit.
         shift = gap.clamp(0.0, MAX_ONSET_SHIFT)
         self.hand_pos0 = P(fit.hand_pos[0] - shift * normal)
-        # An object the masks never saw before the grasp (carried into the view) may start
-        # wherever the hand first takes it: the rest of the gap moves the object.
-        self.object_pos0 = P(fit.object_pos[0] + ((gap - shift) * normal if unseen_before_contact else 0.0))
+        # The rest of the gap moves the object, as far as stage (a) itself moved it before the
+        # grasp (the engine keeps an untouched object where it starts; stage (a) only asks it
+        # to rest): anywhere for an object the masks never saw before the grasp (carried into
+        # the view), where the hand first takes it.
+        slack = float("inf") if unseen_before_contact else _drift_before_contact(fit, contact)
+        self.object_pos0 = P(fit.object_pos[0] + (gap - shift).clamp(max=slack) * normal)
         self.object_rot6 = P(rotation_to_6d(fit.object_rot[0]))
         self.object_size_raw = P(positive_inverse(fit.object_size, MIN_OBJECT_SIZE))
         self.static_xy = P(fit.static_pos[:, :2].clone())
@@ -252,6 +255,15 @@ class PhysicalScene(torch.nn.Module):
     def forward(self, simulate=simulate) -> PhysicalRollout:
         """Simulate the scene (pre-roll, the video, post-roll) with ``simulate`` (default: the Warp engine)."""
         return self.assemble(simulate(self.simulation_inputs(), **self.simulation_options()))
+
+
+def _drift_before_contact(fit: SceneTrajectories, contact: np.ndarray) -> float:
+    """How far [m] stage (a)'s object centre is, at the first contact frame, from where it
+    starts (0 without contact)."""
+    onset = np.flatnonzero(contact)
+    if len(onset) == 0:
+        return 0.0
+    return float(torch.linalg.vector_norm(fit.object_pos[onset[0]] - fit.object_pos[0]))
 
 
 def make_physical_scene(
