@@ -15,8 +15,8 @@ p = (j + 0.5, i + 0.5):
     v_k  = c_k prod_{l: z_l < z_k} (1 - c_l)            visible mask; depth only where two
                                                         or more layers cover p
 
-:func:`rasterize` also keeps each pixel's layers: the bit mask of the primitives covering
-it, their coverages c_k and, where two or more cover it, their depths z_k.
+:func:`rasterize` also keeps the layers of each pixel that two or more primitives cover:
+the bit mask of those primitives, their coverages c_k and their depths z_k.
 :func:`rasterize_backward` recomputes sd_k over a tile per primitive, reads the other layers
 kept at the pixel, turns dL/dv into dL/dsd_k and reduces, per hull edge e, the moments
 (sum g, sum g (p - a_e)) over the pixels whose distance edge is e (a_e the edge's first
@@ -369,14 +369,13 @@ def _forward(
         for j in range(x0, wp.min(x0 + TILE, W)):
             p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
             covered, c, sd, edge = _layers(line_in, bound_in, f, partial, full, edges, p, sigma)
-            covered_out[f, i, j] = covered
             if covered & (covered - 1) == 0:  # at most one layer: no depth test
                 if covered != 0:
                     k = _lowest(covered)
                     mask_out[f, k, i, j] = c[k]
-                    coverage_out[f, k, i, j] = c[k]
             else:
                 z = _depths(intrinsics, vert_in, hull_in, count_in, plane_count_in, plane_in, f, covered, sd, edge, p)
+                covered_out[f, i, j] = covered
                 rest = covered
                 while rest != 0:
                     k = _lowest(rest)
@@ -424,8 +423,8 @@ def _backward(
                 if sdk <= limit and sdk >= -limit:
                     ck = 1.0 / (1.0 + wp.exp(sdk / sigma))
                     dc = mask_grad_in[f, k, i, j]
-                    covered = covered_in[f, i, j]
-                    others = covered ^ bit
+                    covered = covered_in[f, i, j]  # 0 where k is the only layer
+                    others = covered - (covered & bit)
                     if others != 0:
                         c = _LAYERS()
                         z = _LAYERS()
@@ -489,9 +488,9 @@ def rasterize(
     depth: wp.array,
 ) -> None:
     """Visible soft masks (F, P, H, W) into the zero-initialised ``mask``, and the layers the
-    backward pass reads: per pixel the bit mask of the covering primitives into the
-    zero-initialised ``covered`` (F, H, W), their coverages into ``coverage`` (F, P, H, W)
-    and, where two or more cover a pixel, their depths [m] into ``depth`` (F, P, H, W)."""
+    backward pass reads where two or more primitives cover a pixel: the bit mask of those
+    primitives into the zero-initialised ``covered`` (F, H, W) (0 elsewhere), their
+    coverages into ``coverage`` (F, P, H, W) and their depths [m] into ``depth`` (F, P, H, W)."""
     dim = (mask.shape[0], *_tiles(mask.shape[2], mask.shape[3]))
     inputs = [intrinsics, sigma, vertices, hull, count, line, bound, plane_count, plane]
     wp.launch(_forward, dim=dim, inputs=inputs, outputs=[mask, covered, coverage, depth], device=mask.device)

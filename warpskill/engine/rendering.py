@@ -123,7 +123,7 @@ class _SoftSilhouettes(torch.autograd.Function):
             plane=planes.to(torch.float32).contiguous(),
         )
         mask = torch.zeros(F, P, *image_size, **f32)
-        layers = _Layers(  # read only where ``covered`` says a layer is
+        layers = _Layers(  # coverage and depth are read only where ``covered`` is set
             covered=torch.zeros(F, *image_size, **i32),
             coverage=torch.empty(F, P, *image_size, **f32),
             depth=torch.empty(F, P, *image_size, **f32),
@@ -167,11 +167,11 @@ class _Buffers(NamedTuple):
 
 
 class _Layers(NamedTuple):
-    """What the forward raster keeps per pixel for the backward pass."""
+    """What the forward raster keeps, where two or more primitives cover a pixel, for the backward pass."""
 
-    covered: torch.Tensor  # (F, H, W) int32 bit mask of the primitives covering the pixel
+    covered: torch.Tensor  # (F, H, W) int32 bit mask of those primitives (0: at most one covers the pixel)
     coverage: torch.Tensor  # (F, P, H, W) float32 their coverages c_k
-    depth: torch.Tensor  # (F, P, H, W) float32 their depths [m], where two or more cover it
+    depth: torch.Tensor  # (F, P, H, W) float32 their depths [m]
 
     def views(self) -> list[wp.array]:
         """Zero-copy Warp views."""
