@@ -171,3 +171,21 @@ def test_a_thin_object_is_pushed_by_the_fingertips_above_the_table():
         fingertip = tcp + FINGERTIP_BELOW_TCP * approach
         assert fingertip[2] < size[2] / 2, pose.name  # below the top face: the pads press its side
         assert fingertip[2] > -size[2] / 2, pose.name  # above the table
+
+
+@pytest.mark.parametrize("action", ["push_left_to_right", "push_right_to_left"])
+def test_the_lead_in_passes_over_a_tall_object_without_knocking_it_over(action):
+    require_robot("mujoco")
+    from warpskill.robot.replay_mujoco import simulate
+
+    recon = truth(action, 0)
+    size = recon.object_size.copy()
+    size[2] = 0.5  # a 50 cm pillar: its top is above the home pose's TCP
+    pos = recon.object_pos.copy()
+    pos[:, 2] += (size[2] - recon.object_size[2]) / 2
+    tall = dataclasses.replace(recon, object_size=size, object_pos=pos)
+    plan = robot.retarget(tall)
+    scene = plan.scene(tall)
+    sim = simulate(plan, scene, np.array([plan.t[0], plan.start_time]))
+    # Before the demonstration starts the robot has only moved from home to where it joins it.
+    assert np.abs(sim["object_pos"][1] - sim["object_pos"][0]).max() < 0.005

@@ -4,7 +4,9 @@ The plan, sampled every :data:`~warpskill.robot.planner.DT`:
 
 1. lead-in (:data:`LEAD_IN` s, reconstruction time 0): from the home configuration's TCP
    pose up over the join pose and down onto it (position min-jerk, orientation slerped to
-   the grasp's); the join pose is where the robot takes up the demonstrated hand path, at
+   the grasp's), passing at least :data:`LEAD_RISE` over the object's top (where that is
+   higher than home, the TCP rises in the first half of the move: the arm would otherwise
+   sweep through a tall object's top before the contact); the join pose is where the robot takes up the demonstrated hand path, at
    most :data:`FOLLOW_TIME` s before the pre-grasp and never further than
    :data:`FOLLOW_RADIUS` from it (the free-hand motion far from the object is not
    followed); the robot waits there until the demonstration reaches it;
@@ -216,6 +218,9 @@ def plan_targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int
     join = approach_target(t_join)
     above = join.copy()
     above[2, 3] = max(join[2, 3] + LEAD_RISE, min(home_tcp[2, 3], join[2, 3] + 2 * LEAD_RISE))
+    over_object = float(cuboid_corners(recon.object_pos[0], recon.object_rot[0], recon.object_size)[:, 2].max()) + LEAD_RISE
+    rise_first = over_object > max(above[2, 3], home_tcp[2, 3])
+    above[2, 3] = max(above[2, 3], over_object)
     n_lead = int(round(LEAD_IN / DT))
     n_move = n_lead - int(round(LEAD_SETTLE / DT))
     n_up = int(0.65 * n_move)
@@ -225,6 +230,9 @@ def plan_targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int
             s = float(min_jerk(np.array((i + 1) / n_up)))
             T[:3, :3] = _slerp(home_tcp[:3, :3], join[:3, :3], s)
             T[:3, 3] = (1 - s) * home_tcp[:3, 3] + s * above[:3, 3]
+            if rise_first:  # up to the pass height in the first half of the move
+                rise = float(min_jerk(np.array(min(1.0, 2.0 * (i + 1) / n_up))))
+                T[2, 3] = (1 - rise) * home_tcp[2, 3] + rise * above[2, 3]
         elif i < n_move:
             s = float(min_jerk(np.array((i + 1 - n_up) / (n_move - n_up))))
             T[:3, 3] = (1 - s) * above[:3, 3] + s * join[:3, 3]
