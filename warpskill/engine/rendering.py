@@ -133,24 +133,24 @@ class _SoftSilhouettes(torch.autograd.Function):
             visible = as_warp(visible.to(torch.int32))
             raster.build_hulls(as_warp(sides), raster.CUTOFF * sigma, visible, *views[:5])
             raster.rasterize(wp.vec4(*camera_vec), sigma, *views, as_warp(mask), *layers.views())
-        ctx.save_for_backward(pixels.detach(), *buffers[:5], *layers)
+        ctx.save_for_backward(pixels.detach(), *buffers, *layers)
         ctx.sigma = sigma
         return mask
 
     @staticmethod
     def backward(ctx, mask_grad):
         pixels, *saved = ctx.saved_tensors
-        buffers, layers = _Buffers(*saved[:5], None, None), _Layers(*saved[5:])
+        buffers, layers = _Buffers(*saved[:7]), _Layers(*saved[7:])
         moment = torch.zeros(*buffers.hull.shape, 3, dtype=torch.float32, device=pixels.device)
         with warp_scope(pixels.device):
             grad = as_warp(mask_grad.to(torch.float32))
-            raster.rasterize_backward(ctx.sigma, *buffers.views(), *layers.views(), grad, as_warp(moment, wp.vec3))
+            raster.rasterize_backward(ctx.sigma, *buffers.views()[:5], *layers.views(), grad, as_warp(moment, wp.vec3))
         return _vertex_gradients(pixels, buffers.hull, buffers.count, moment), None, None, None, None, None, None
 
 
 class _Buffers(NamedTuple):
     """Raster buffers of the forward kernels, in their argument order (the backward kernel
-    reads the first five; the others may be None there)."""
+    reads the first five)."""
 
     vertices: torch.Tensor  # (F, P, V, 2) float32 projected vertices [px]
     hull: torch.Tensor  # (F, P, MAX_HULL) int32 hull vertex indices, counter-clockwise
@@ -161,9 +161,9 @@ class _Buffers(NamedTuple):
     plane: torch.Tensor  # (F, P, 26, 4) float32 face planes, camera-facing first
 
     def views(self) -> list[wp.array]:
-        """Zero-copy Warp views (of the fields that are set)."""
+        """Zero-copy Warp views."""
         types = (wp.vec2, None, None, wp.vec3, wp.vec4, None, wp.vec4)
-        return [as_warp(buffer, dtype) for buffer, dtype in zip(self, types) if buffer is not None]
+        return [as_warp(buffer, dtype) for buffer, dtype in zip(self, types)]
 
 
 class _Layers(NamedTuple):

@@ -6,10 +6,10 @@ The plan, sampled every :data:`~warpskill.robot.planner.DT`:
    pose up over the join pose and down onto it (position min-jerk, orientation slerped to
    the grasp's), passing at least :data:`LEAD_RISE` over the object's top (where that is
    higher than home, the TCP rises in the first half of the move: the arm would otherwise
-   sweep through a tall object's top before the contact); the join pose is where the robot takes up the demonstrated hand path, at
-   most :data:`FOLLOW_TIME` s before the pre-grasp and never further than
-   :data:`FOLLOW_RADIUS` from it (the free-hand motion far from the object is not
-   followed); the robot waits there until the demonstration reaches it;
+   sweep through a tall object's top before the contact); the join pose is where the robot
+   takes up the demonstrated hand path, at most :data:`FOLLOW_TIME` s before the pre-grasp
+   and never further than :data:`FOLLOW_RADIUS` from it (the free-hand motion far from the
+   object is not followed); the robot waits there until the demonstration reaches it;
 2. approach: the demonstrated tip path, shifted so that it ends at the pre-grasp pose
    (:data:`PREGRASP` back along the approach), then a straight move onto the grasp pose
    at the onset, never faster than :data:`APPROACH_TIME` (without ``follow_hand``, the
@@ -218,7 +218,8 @@ def plan_targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int
     join = approach_target(t_join)
     above = join.copy()
     above[2, 3] = max(join[2, 3] + LEAD_RISE, min(home_tcp[2, 3], join[2, 3] + 2 * LEAD_RISE))
-    over_object = float(cuboid_corners(recon.object_pos[0], recon.object_rot[0], recon.object_size)[:, 2].max()) + LEAD_RISE
+    object_top = float(cuboid_corners(recon.object_pos[0], recon.object_rot[0], recon.object_size)[:, 2].max())
+    over_object = object_top + LEAD_RISE
     rise_first = over_object > max(above[2, 3], home_tcp[2, 3])
     above[2, 3] = max(above[2, 3], over_object)
     n_lead = int(round(LEAD_IN / DT))
