@@ -12,6 +12,7 @@ from warpskill.contract.reconstruction import FIELD_SHAPES, Reconstruction
 from warpskill.engine.distances import box_signed_distance
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.pipeline import optimize
+from warpskill.optimizer.scene import SceneTrajectories
 from warpskill.optimizer.stage_a import OBJECT_DEPTH_HYPOTHESES
 from warpskill.synthetic import make_demonstration
 
@@ -132,6 +133,20 @@ def test_physics_stage_lowers_its_loss(pick_up, monkeypatch):
 def test_same_seed_gives_identical_results_on_cpu(pick_up, pick_up_recon):
     again = optimize(pick_up, config=SMALL, progress=False, seed=0, device="cpu")
     _assert_same(again, pick_up_recon)
+
+
+def test_hypotheses_that_place_the_object_alike_are_fitted_once(monkeypatch):
+    # Pulled sideways at one depth: the object's box bottom stays on one row, so "resting
+    # depth" and "on the ground" give the same starting scene.
+    demo = make_demonstration("pull_right_to_left", seed=1, image_size=(60, 107), duration=2.0)
+    calls = _Calls(monkeypatch)
+    alike = optimize(demo, config=SMALL, init_only=True, progress=False)
+    assert calls.init == SMALL.init_iterations
+    # Fitting both gives the same reconstruction (equal losses: the first wins).
+    monkeypatch.setattr(SceneTrajectories, "same_as", lambda self, other: False)
+    both = optimize(demo, config=SMALL, init_only=True, progress=False)
+    assert calls.init == SMALL.init_iterations + INIT_CALLS
+    _assert_same(alike, both)
 
 
 def test_init_only_derives_grasped_from_contact_and_the_tip_inside_the_object(pick_up, monkeypatch):

@@ -160,7 +160,7 @@ def optimize_many(
     # The hand's tilt read off its foreshortening starts the hand where the scale is free
     # (54 synthetic mask demonstrations: |scale - 1| 0.115 -> 0.07, 50/54 either way); with
     # a known length it raised the object-centre error (2.9 -> 3.5 cm), so it is left out.
-    owners, candidates, supported = [], [], []
+    owners, candidates, supported, guesses = [], [], [], []
     for i, (demo, given) in enumerate(zip(demos, inputs)):
         for hypothesis in OBJECT_DEPTH_HYPOTHESES:
             on_static = hypothesis == "on the static"
@@ -170,6 +170,9 @@ def optimize_many(
                                   object_depth=hypothesis, resting=resting[i], hand_width=not given.hand_boxed,
                                   hand_tilt=not knowns[i],
                                   carried=given.contact_signal | held[i])
+            if any(owner == i and guess.same_as(made) for owner, made in zip(owners, guesses)):
+                continue  # placed alike by two hypotheses (the object's box bottom stays on one row): one fit
+            guesses.append(guess)
             owners.append(i)
             supported.append(torch.as_tensor(resting[i], dtype=torch.float32, device=device) if on_static else None)
             candidates.append(InitialParameters(guess, knowns[i]).to(device))

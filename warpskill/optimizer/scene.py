@@ -38,6 +38,10 @@ class SceneTrajectories:
         """A copy with every tensor detached from the autograd graph (and moved to ``device``)."""
         return SceneTrajectories(**{k: v.detach().to(device).clone() for k, v in vars(self).items()})
 
+    def same_as(self, other: "SceneTrajectories") -> bool:
+        """Whether every tensor equals ``other``'s exactly (same shapes and values)."""
+        return all(torch.equal(v, getattr(other, k)) for k, v in vars(self).items())
+
 
 def positive(raw: torch.Tensor, minimum: float) -> torch.Tensor:
     """Map unconstrained parameters to values > ``minimum`` (softplus)."""
