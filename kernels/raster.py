@@ -15,10 +15,12 @@ p = (j + 0.5, i + 0.5):
     v_k  = c_k prod_{l: z_l < z_k} (1 - c_l)            visible mask; depth only where two
                                                         or more layers cover p
 
-:func:`rasterize` also keeps the layers of each pixel that two or more primitives cover:
-the bit mask of those primitives, their coverages c_k and their depths z_k.
-:func:`rasterize_backward` recomputes sd_k over a tile per primitive, reads the other layers
-kept at the pixel, turns dL/dv into dL/dsd_k and reduces, per hull edge e, the moments
+:func:`rasterize` writes v_k, or only what the mask losses read of it (the profiles: row
+sums, column sums and the overlap sum v_k t_k with a target mask), and keeps the layers of
+each pixel that two or more primitives cover: the bit mask of those primitives, their
+coverages c_k and their depths z_k. :func:`rasterize_backward` recomputes sd_k over a tile
+per primitive, reads the other layers kept at the pixel, turns dL/dv (given, or from the
+profiles' gradients: dL/dv_ij = g_row_i + g_col_j + g_overlap t_ij) into dL/dsd_k and reduces, per hull edge e, the moments
 (sum g, sum g (p - a_e)) over the pixels whose distance edge is e (a_e the edge's first
 vertex), with one atomic add per (tile, primitive, edge). Depth order carries no gradient.
 All kernels are forward-only; the Torch bridge (``warpskill.engine.rendering``) turns
@@ -352,37 +354,84 @@ def _forward(
     bound_in: wp.array2d(dtype=wp.vec4),
     plane_count_in: wp.array2d(dtype=int),
     plane_in: wp.array3d(dtype=wp.vec4),
+    target_frame_in: wp.array(dtype=int),
+    target_in: wp.array4d(dtype=float),
     # Data out:
     mask_out: wp.array4d(dtype=float),
     covered_out: wp.array3d(dtype=int),
     coverage_out: wp.array4d(dtype=float),
     depth_out: wp.array4d(dtype=float),
+    rows_out: wp.array3d(dtype=float),
+    cols_out: wp.array3d(dtype=float),
+    overlap_out: wp.array2d(dtype=float),
 ):
     f, ty, tx = wp.tid()
-    H, W = mask_out.shape[2], mask_out.shape[3]
+    H, W = covered_out.shape[1], covered_out.shape[2]
     x0, y0 = tx * TILE, ty * TILE
     lo, hi = _tile_corners(x0, y0, H, W)
     partial, full, edges = _tile_classes(count_in, line_in, bound_in, f, lo, hi, CUTOFF * sigma)
     if partial == 0 and full == 0:
         return
+    masks = mask_out.shape[0] > 0  # else only the profiles against the targets
+    profiles = target_in.shape[0] > 0
+    t = int(0)
+    if profiles:
+        t = target_frame_in[f]
+    overlap = _LAYERS()
     for i in range(y0, wp.min(y0 + TILE, H)):
+        row = _LAYERS()
         for j in range(x0, wp.min(x0 + TILE, W)):
             p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
             covered, c, sd, edge = _layers(line_in, bound_in, f, partial, full, edges, p, sigma)
-            if covered & (covered - 1) == 0:  # at most one layer: no depth test
-                if covered != 0:
-                    k = _lowest(covered)
-                    mask_out[f, k, i, j] = c[k]
-            else:
+            v = c  # visible masks: at most one layer needs no depth test
+            if covered & (covered - 1) != 0:
                 z = _depths(intrinsics, vert_in, hull_in, count_in, plane_count_in, plane_in, f, covered, sd, edge, p)
                 covered_out[f, i, j] = covered
                 rest = covered
                 while rest != 0:
                     k = _lowest(rest)
                     rest = rest & (rest - 1)
-                    mask_out[f, k, i, j] = c[k] * _transmittance(c, z, covered, k, -1)
+                    v[k] = c[k] * _transmittance(c, z, covered, k, -1)
                     coverage_out[f, k, i, j] = c[k]
                     depth_out[f, k, i, j] = z[k]
+            rest = covered
+            while rest != 0:
+                k = _lowest(rest)
+                rest = rest & (rest - 1)
+                if masks:
+                    mask_out[f, k, i, j] = v[k]
+                if profiles:
+                    row[k] += v[k]
+                    wp.atomic_add(cols_out, f, k, j, v[k])
+                    overlap[k] += v[k] * target_in[t, k, i, j]
+        if profiles:
+            for k in range(count_in.shape[1]):
+                if row[k] != 0.0:
+                    wp.atomic_add(rows_out, f, k, i, row[k])
+    if profiles:
+        for k in range(count_in.shape[1]):
+            if overlap[k] != 0.0:
+                wp.atomic_add(overlap_out, f, k, overlap[k])
+
+
+@wp.func
+def _mask_grad(
+    mask_grad_in: wp.array4d(dtype=float),
+    target_in: wp.array4d(dtype=float),
+    rows_grad_in: wp.array3d(dtype=float),
+    cols_grad_in: wp.array3d(dtype=float),
+    overlap_grad_in: wp.array2d(dtype=float),
+    t: int,
+    f: int,
+    k: int,
+    i: int,
+    j: int,
+) -> float:
+    """dL/dv of the visible mask of primitive k at pixel (i, j) of frame f: given per pixel, or
+    from the gradients of the profiles (row sum i, column sum j, overlap with target frame t)."""
+    if mask_grad_in.shape[0] > 0:
+        return mask_grad_in[f, k, i, j]
+    return rows_grad_in[f, k, i] + cols_grad_in[f, k, j] + overlap_grad_in[f, k] * target_in[t, k, i, j]
 
 
 @wp.kernel
@@ -399,11 +448,16 @@ def _backward(
     coverage_in: wp.array4d(dtype=float),
     depth_in: wp.array4d(dtype=float),
     mask_grad_in: wp.array4d(dtype=float),
+    target_frame_in: wp.array(dtype=int),
+    target_in: wp.array4d(dtype=float),
+    rows_grad_in: wp.array3d(dtype=float),
+    cols_grad_in: wp.array3d(dtype=float),
+    overlap_grad_in: wp.array2d(dtype=float),
     # Data out:
     moment_out: wp.array3d(dtype=wp.vec3),
 ):
     f, k, ty, tx = wp.tid()
-    H, W = mask_grad_in.shape[2], mask_grad_in.shape[3]
+    H, W = covered_in.shape[1], covered_in.shape[2]
     x0, y0 = tx * TILE, ty * TILE
     lo, hi = _tile_corners(x0, y0, H, W)
     limit = CUTOFF * sigma
@@ -411,6 +465,9 @@ def _backward(
     if (partial >> k) & 1 == 0:  # coverage is constant (0 or 1) over the tile
         return
     bit = 1 << k
+    t = int(0)
+    if target_in.shape[0] > 0:
+        t = target_frame_in[f]
     count = count_in[f, k]
     bound = bound_in[f, k]
     origin = wp.vec2(float(x0 + TILE // 2), float(y0 + TILE // 2))  # moments about the tile centre
@@ -422,7 +479,7 @@ def _backward(
                 sdk, ek = _signed_distance(line_in, f, k, edges[k], p, limit)
                 if sdk <= limit and sdk >= -limit:
                     ck = 1.0 / (1.0 + wp.exp(sdk / sigma))
-                    dc = mask_grad_in[f, k, i, j]
+                    dc = _mask_grad(mask_grad_in, target_in, rows_grad_in, cols_grad_in, overlap_grad_in, t, f, k, i, j)
                     covered = covered_in[f, i, j]  # 0 where k is the only layer
                     others = covered - (covered & bit)
                     if others != 0:
@@ -440,7 +497,10 @@ def _backward(
                             m = _lowest(rest)
                             rest = rest & (rest - 1)
                             if _in_front(z, k, m):
-                                dc = dc - mask_grad_in[f, m, i, j] * c[m] * _transmittance(c, z, covered, m, k)
+                                g_m = _mask_grad(
+                                    mask_grad_in, target_in, rows_grad_in, cols_grad_in, overlap_grad_in, t, f, m, i, j
+                                )
+                                dc = dc - g_m * c[m] * _transmittance(c, z, covered, m, k)
                     g = -dc * ck * (1.0 - ck) / sigma
                     acc[ek, 0] += g
                     acc[ek, 1] += g * (p[0] - origin[0])
@@ -482,18 +542,30 @@ def rasterize(
     bound: wp.array,
     plane_count: wp.array,
     plane: wp.array,
+    target_frame: wp.array,
+    target: wp.array,
     mask: wp.array,
     covered: wp.array,
     coverage: wp.array,
     depth: wp.array,
+    rows: wp.array,
+    cols: wp.array,
+    overlap: wp.array,
 ) -> None:
-    """Visible soft masks (F, P, H, W) into the zero-initialised ``mask``, and the layers the
-    backward pass reads where two or more primitives cover a pixel: the bit mask of those
-    primitives into the zero-initialised ``covered`` (F, H, W) (0 elsewhere), their
-    coverages into ``coverage`` (F, P, H, W) and their depths [m] into ``depth`` (F, P, H, W)."""
-    dim = (mask.shape[0], *_tiles(mask.shape[2], mask.shape[3]))
-    inputs = [intrinsics, sigma, vertices, hull, count, line, bound, plane_count, plane]
-    wp.launch(_forward, dim=dim, inputs=inputs, outputs=[mask, covered, coverage, depth], device=mask.device)
+    """Visible soft masks v (F, P, H, W) into the zero-initialised ``mask``, or, where ``mask``
+    is empty (0, P, H, W), only their profiles against ``target`` (T, P, H, W), frame f read
+    against target frame ``target_frame[f]``: row sums into ``rows`` (F, P, H), column sums
+    into ``cols`` (F, P, W) and sum_ij v t into ``overlap`` (F, P), all zero-initialised (an
+    empty ``target`` skips them).
+
+    Also the layers the backward pass reads where two or more primitives cover a pixel: the
+    bit mask of those primitives into the zero-initialised ``covered`` (F, H, W) (0
+    elsewhere), their coverages into ``coverage`` (F, P, H, W) and their depths [m] into
+    ``depth`` (F, P, H, W)."""
+    dim = (covered.shape[0], *_tiles(covered.shape[1], covered.shape[2]))
+    inputs = [intrinsics, sigma, vertices, hull, count, line, bound, plane_count, plane, target_frame, target]
+    outputs = [mask, covered, coverage, depth, rows, cols, overlap]
+    wp.launch(_forward, dim=dim, inputs=inputs, outputs=outputs, device=covered.device)
 
 
 def rasterize_backward(
@@ -507,10 +579,18 @@ def rasterize_backward(
     coverage: wp.array,
     depth: wp.array,
     mask_grad: wp.array,
+    target_frame: wp.array,
+    target: wp.array,
+    rows_grad: wp.array,
+    cols_grad: wp.array,
+    overlap_grad: wp.array,
     moment: wp.array,
 ) -> None:
     """Per hull edge moments (sum g, sum g (p - a)) of g = dL/dsd into the zero-initialised
-    ``moment``, from the hulls and the layers :func:`rasterize` kept."""
-    dim = (mask_grad.shape[0], mask_grad.shape[1], *_tiles(mask_grad.shape[2], mask_grad.shape[3]))
-    inputs = [sigma, vertices, hull, count, line, bound, covered, coverage, depth, mask_grad]
+    ``moment``, from the hulls and the layers :func:`rasterize` kept. dL/dv is ``mask_grad``
+    (F, P, H, W), or where that is empty, comes from the gradients of the profiles (``rows_grad``
+    (F, P, H), ``cols_grad`` (F, P, W), ``overlap_grad`` (F, P)) and ``target``."""
+    dim = (coverage.shape[0], coverage.shape[1], *_tiles(coverage.shape[2], coverage.shape[3]))
+    inputs = [sigma, vertices, hull, count, line, bound, covered, coverage, depth, mask_grad, target_frame, target,
+              rows_grad, cols_grad, overlap_grad]
     wp.launch(_backward, dim=dim, inputs=inputs, outputs=[moment], device=moment.device)

@@ -21,7 +21,7 @@ from warpskill.engine.primitives import (
     prism_planes,
 )
 from warpskill.engine.raycast import raycast_masks
-from warpskill.engine.rendering import _Buffers, _Layers, _SoftSilhouettes, render_silhouettes
+from warpskill.engine.rendering import _Buffers, _Layers, _SoftSilhouettes, render_silhouettes, silhouette_profiles
 
 HEIGHT, ELEVATION = 0.30, 0.50  # camera [m], [rad]
 FULL = Intrinsics.default(240, 427)
@@ -304,13 +304,61 @@ def dense_case():
 def test_vertex_gradients_match_dense_reference(dense_case):
     c = dense_case
     ours = c["pixels"].clone().requires_grad_(True)
-    masks = _SoftSilhouettes.apply(
-        ours, c["planes"], c["visible"], c["sides"], c["camera_vec"], c["image_size"], c["sigma"]
+    masks, *_ = _SoftSilhouettes.apply(
+        ours, c["planes"], c["visible"], c["sides"], c["camera_vec"], c["image_size"], c["sigma"], None, None
     )
     (masks.double() * c["weights"]).sum().backward()
     assert float((masks.detach().double() - c["dense_masks"]).abs().max()) < 2e-5  # float32, 6e-6 cut-off
     rel = float((ours.grad - c["dense_grad"]).norm() / c["dense_grad"].norm())
     assert rel < 3e-4, f"vertex gradients differ from the dense reference by {rel:.2e}"  # float32 kernels
+
+
+def test_profiles_match_the_dense_masks_sums_and_gradients(dense_case):
+    # The profiles (row sums, column sums, overlap with a target) without forming the masks,
+    # against the dense reference's masks; their gradients against the dense reference's for
+    # the same loss, whose per-pixel weight is w_row[i] + w_col[j] + w_overlap t_ij.
+    c = dense_case
+    F, P = c["pixels"].shape[:2]
+    H, W = c["image_size"]
+    gen = torch.Generator().manual_seed(2)
+    targets = (torch.rand(F, P, H, W, generator=gen) > 0.5).float()
+    w_rows, w_cols, w_overlap = (torch.rand(F, P, n, generator=gen, dtype=torch.float64) for n in (H, W, 1))
+    ours = c["pixels"].clone().requires_grad_(True)
+    _, rows, cols, overlap = _SoftSilhouettes.apply(
+        ours, c["planes"], c["visible"], c["sides"], c["camera_vec"], c["image_size"], c["sigma"],
+        targets, torch.arange(F),
+    )
+    dense = c["dense_masks"]
+    assert float((rows.detach().double() - dense.sum(-1)).abs().max()) < 1e-3
+    assert float((cols.detach().double() - dense.sum(-2)).abs().max()) < 1e-3
+    assert float((overlap.detach().double() - (dense * targets).sum((-1, -2))).abs().max()) < 1e-2
+    loss = (rows.double() * w_rows).sum() + (cols.double() * w_cols).sum() + (overlap.double() * w_overlap[..., 0]).sum()
+    loss.backward()
+    reference = c["pixels"].clone().requires_grad_(True)
+    masks, _, _ = dense_masks(reference, c["planes"], c["sides"], torch.as_tensor(FULL.resized(H, W).K), (H, W), c["sigma"])
+    weights = w_rows[..., :, None] + w_cols[..., None, :] + w_overlap[..., None] * targets.double()
+    (masks * weights).sum().backward()
+    rel = float((ours.grad - reference.grad).norm() / reference.grad.norm())
+    assert rel < 3e-4, f"profile gradients differ from the dense reference by {rel:.2e}"
+
+
+def test_profiles_read_each_frames_own_target_frame():
+    # Two frames that share one target frame (two hypotheses of one video) give the profiles of
+    # two frames with their targets repeated.
+    s = SCENES["hand_in_front"]
+    intrinsics = FULL.scaled(0.25)
+    H, W = intrinsics.image_size
+    targets = (torch.rand(1, 3, H, W, generator=torch.Generator().manual_seed(3)) > 0.3).float()
+    poses = {k: v.float() for k, v in s.items()}
+    shared = silhouette_profiles(**poses, intrinsics=intrinsics, targets=targets,
+                                 target_frame=torch.zeros(3, dtype=torch.long), sigma=1.0)
+    repeated = silhouette_profiles(**poses, intrinsics=intrinsics, targets=targets.expand(3, -1, -1, -1), sigma=1.0)
+    masks = render_silhouettes(**poses, intrinsics=intrinsics, sigma=1.0)
+    for a, b in zip(shared, repeated):
+        torch.testing.assert_close(a, b, rtol=0, atol=0)
+    torch.testing.assert_close(shared[2], (masks * targets).sum((-1, -2)), rtol=1e-5, atol=1e-3)
+    with pytest.raises(ValueError, match="target_frame"):
+        silhouette_profiles(**poses, intrinsics=intrinsics, targets=targets, sigma=1.0)  # 3 frames, 1 target
 
 
 def test_edge_moments_match_dense_reference(dense_case):
@@ -333,9 +381,12 @@ def test_edge_moments_match_dense_reference(dense_case):
     raster.build_hulls(wp.from_torch(c["sides"]), raster.CUTOFF * c["sigma"], visible, *views[:5])
     layers = _Layers(torch.zeros(F, H, W, dtype=torch.int32), torch.empty(F, P, H, W), torch.empty(F, P, H, W))
     mask = wp.from_torch(torch.zeros(F, P, H, W))
-    raster.rasterize(wp.vec4(*c["camera_vec"]), c["sigma"], *views, mask, *layers.views())
+    none = [wp.zeros(0, dtype=int), wp.zeros((0, P, H, W), dtype=float)]  # no targets: no profiles
+    profiles = [wp.zeros((0, P, H), dtype=float), wp.zeros((0, P, W), dtype=float), wp.zeros((0, P), dtype=float)]
+    raster.rasterize(wp.vec4(*c["camera_vec"]), c["sigma"], *views, *none, mask, *layers.views(), *profiles)
     grad = wp.from_torch(c["weights"].to(torch.float32).contiguous())  # dL/dv of L = sum(weights * v)
-    raster.rasterize_backward(c["sigma"], *views[:5], *layers.views(), grad, wp.from_torch(moment, dtype=wp.vec3))
+    raster.rasterize_backward(c["sigma"], *views[:5], *layers.views(), grad, *none, *profiles,
+                              wp.from_torch(moment, dtype=wp.vec3))
 
     v, u = torch.meshgrid(torch.arange(H) + 0.5, torch.arange(W) + 0.5, indexing="ij")
     p = torch.stack([u, v], -1).reshape(-1, 2).double()

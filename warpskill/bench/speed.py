@@ -65,7 +65,7 @@ def backend(name: str) -> Backend:
     if name not in ENGINES:
         raise ValueError(f"engine must be one of {ENGINES}, got {name!r}")
     if name == "reference":
-        return Backend(name, simulate_reference, render_reference)
+        return Backend(name, simulate_reference, render_reference, profile=None)
     if name == "dopri5":
         if simulate_dopri5 is None:
             raise ValueError("engine 'dopri5' needs torchdiffeq: pip install 'warpskill[baselines]'")
@@ -94,7 +94,7 @@ class Problem:
     def stage_a(self, engine: Backend) -> dict[str, torch.Tensor]:
         """Stage (a) loss terms of :attr:`initial` on ``engine``."""
         scene = self.initial.scene()
-        [rendered] = render_many([scene], [self.inputs.intrinsics], self.config.sigma, engine.render)
+        [rendered] = render_many([scene], [self.inputs.intrinsics], self.config.sigma, engine, [self.inputs.targets])
         return initial_objective(scene, rendered, self.inputs.targets, self.inputs.contact, self.demo.fps,
                                  self.config.weights)
 
@@ -107,7 +107,7 @@ class Problem:
         results = [scene.assemble(rollout) for scene, rollout in zip(scenes, rollouts)]
         given = self.inputs
         rendered = render_many([r.scene for r in results], [given.intrinsics] * len(scenes), self.config.sigma,
-                               engine.render)
+                               engine, [given.targets] * len(scenes))
         terms = [physical_objective(r, masks, given.targets, given.contact, given.object_visible, self.config.weights)
                  for r, masks in zip(results, rendered)]
         return {name: sum(t[name] for t in terms) for name in terms[0]}

@@ -66,6 +66,65 @@ def render_silhouettes(
     check_silhouette_inputs(
         hand_pos, hand_rot, cuboid_pos, cuboid_rot, cuboid_size, camera_height, camera_elevation, intrinsics, sigma
     )
+    raster_inputs = _raster_inputs(hand_pos, hand_rot, cuboid_pos, cuboid_rot, cuboid_size, camera_height,
+                                   camera_elevation, intrinsics)
+    masks, _, _, _ = _SoftSilhouettes.apply(*raster_inputs, float(sigma), None, None)
+    return masks.to(hand_pos.dtype)
+
+
+def silhouette_profiles(
+    hand_pos: torch.Tensor,
+    hand_rot: torch.Tensor,
+    cuboid_pos: torch.Tensor,
+    cuboid_rot: torch.Tensor,
+    cuboid_size: torch.Tensor,
+    camera_height: torch.Tensor,
+    camera_elevation: torch.Tensor,
+    intrinsics: Intrinsics,
+    targets: torch.Tensor,
+    target_frame: torch.Tensor | None = None,
+    *,
+    sigma: float = 1.0,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """What the mask losses read of :func:`render_silhouettes`'s masks v, without forming them.
+
+    The raster sums each mask's rows and columns and its overlap with a target mask t as it
+    goes, and its backward pass takes their gradients: the image-sized masks, their
+    gradient and the Torch reductions over them are never made.
+
+    Args:
+        hand_pos, hand_rot, cuboid_pos, cuboid_rot, cuboid_size, camera_height,
+            camera_elevation, intrinsics, sigma: as :func:`render_silhouettes`.
+        targets: (T, 1 + C, H, W) target masks.
+        target_frame: (F,) integer index of each frame's targets (default: frame f reads
+            ``targets[f]``, T = F).
+
+    Returns:
+        ``(rows, cols, overlap)``: (F, 1 + C, H) row sums sum_j v_ij, (F, 1 + C, W) column
+        sums sum_i v_ij and (F, 1 + C) overlaps sum_ij v_ij t_ij [px], in the dtype of ``hand_pos``.
+    """
+    check_silhouette_inputs(
+        hand_pos, hand_rot, cuboid_pos, cuboid_rot, cuboid_size, camera_height, camera_elevation, intrinsics, sigma
+    )
+    F, P = hand_pos.shape[0], 1 + cuboid_pos.shape[1]
+    if target_frame is None:
+        target_frame = torch.arange(F, device=hand_pos.device)
+    if targets.dim() != 4 or tuple(targets.shape[1:]) != (P, *intrinsics.image_size):
+        raise ValueError(f"targets must be (T, {P}, {intrinsics.image_size[0]}, {intrinsics.image_size[1]}), "
+                         f"got {tuple(targets.shape)}")
+    if target_frame.shape != (F,) or (F and not 0 <= int(target_frame.min()) <= int(target_frame.max()) < len(targets)):
+        raise ValueError(f"target_frame must be ({F},) indices into the {len(targets)} target frames")
+    raster_inputs = _raster_inputs(hand_pos, hand_rot, cuboid_pos, cuboid_rot, cuboid_size, camera_height,
+                                   camera_elevation, intrinsics)
+    _, rows, cols, overlap = _SoftSilhouettes.apply(*raster_inputs, float(sigma), targets, target_frame)
+    return rows.to(hand_pos.dtype), cols.to(hand_pos.dtype), overlap.to(hand_pos.dtype)
+
+
+def _raster_inputs(
+    hand_pos, hand_rot, cuboid_pos, cuboid_rot, cuboid_size, camera_height, camera_elevation, intrinsics
+) -> tuple:
+    """The raster's inputs for a scene: projected vertices (F, P, V, 2) [px], face planes,
+    visibility (F, P), prism sides (P,), intrinsics (fx, fy, cx, cy) and image size (H, W)."""
     dtype = hand_pos.dtype
     F, C = cuboid_pos.shape[:2]
     cuboid_size = cuboid_size.to(dtype).expand(F, C, 3)
@@ -82,9 +141,7 @@ def render_silhouettes(
     sides = torch.tensor([HAND_SEGMENTS] + [4] * C, dtype=torch.int32, device=hand_pos.device)
     K = intrinsics.K
     camera_vec = (float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]))
-    image_size = tuple(intrinsics.image_size)
-    masks = _SoftSilhouettes.apply(pixels, planes, visible, sides, camera_vec, image_size, float(sigma))
-    return masks.to(dtype)
+    return pixels, planes, visible, sides, camera_vec, tuple(intrinsics.image_size)
 
 
 def _camera_facing(planes: torch.Tensor) -> torch.Tensor:
@@ -100,16 +157,22 @@ def _pad(x: torch.Tensor, rows: int) -> torch.Tensor:
 
 
 class _SoftSilhouettes(torch.autograd.Function):
-    """Visible soft masks (F, P, H, W) from projected prism vertices (F, P, V, 2) [px].
+    """Visible soft masks (F, P, H, W) from projected prism vertices (F, P, V, 2) [px], or
+    only their profiles (row sums, column sums, overlaps) against target masks.
 
     Non-differentiable inputs: face planes (F, P, 26, 4) in camera coordinates, camera-facing
     first (:func:`_camera_facing`), visibility (F, P) bool, prism sides (P,) int32,
-    intrinsics (fx, fy, cx, cy), image size (H, W) and sigma [px].
+    intrinsics (fx, fy, cx, cy), image size (H, W), sigma [px], and the targets (T, P, H, W)
+    with each frame's index into them (F,), or None for the masks.
+
+    Outputs ``(masks, rows, cols, overlap)``: the masks (empty with targets), or the
+    profiles (F, P, H), (F, P, W), (F, P) (empty without).
     """
 
     @staticmethod
-    def forward(ctx, pixels, planes, visible, sides, camera_vec, image_size, sigma):
+    def forward(ctx, pixels, planes, visible, sides, camera_vec, image_size, sigma, targets, target_frame):
         wp.init()  # no-op once Warp is up
+        ctx.set_materialize_grads(False)  # a profile the loss does not read seeds nothing
         F, P = pixels.shape[:2]
         device = pixels.device
         f32, i32 = {"dtype": torch.float32, "device": device}, {"dtype": torch.int32, "device": device}
@@ -122,30 +185,50 @@ class _SoftSilhouettes(torch.autograd.Function):
             plane_count=(planes[..., 3] < 0).sum(dim=-1, dtype=torch.int32),
             plane=planes.to(torch.float32).contiguous(),
         )
-        mask = torch.zeros(F, P, *image_size, **f32)
         layers = _Layers(  # coverage and depth are read only where ``covered`` is set
             covered=torch.zeros(F, *image_size, **i32),
             coverage=torch.empty(F, P, *image_size, **f32),
             depth=torch.empty(F, P, *image_size, **f32),
         )
+        profiled = targets is not None
+        along = _Targets(
+            frame=target_frame.to(torch.int32).contiguous() if profiled else torch.zeros(0, **i32),
+            masks=targets.to(torch.float32).contiguous() if profiled else torch.zeros(0, P, *image_size, **f32),
+        )
+        made = F if profiled else 0
+        masks = torch.zeros(F - made, P, *image_size, **f32)
+        rows, cols = (torch.zeros(made, P, n, **f32) for n in image_size)
+        overlap = torch.zeros(made, P, **f32)
         with warp_scope(device):
             views = buffers.views()
             visible = as_warp(visible.to(torch.int32))
             raster.build_hulls(as_warp(sides), raster.CUTOFF * sigma, visible, *views[:5])
-            raster.rasterize(wp.vec4(*camera_vec), sigma, *views, as_warp(mask), *layers.views())
-        ctx.save_for_backward(pixels.detach(), *buffers, *layers)
+            raster.rasterize(wp.vec4(*camera_vec), sigma, *views, *along.views(), as_warp(masks), *layers.views(),
+                             *(as_warp(x) for x in (rows, cols, overlap)))
+        ctx.save_for_backward(pixels.detach(), *buffers, *layers, *along)
         ctx.sigma = sigma
-        return mask
+        return masks, rows, cols, overlap
 
     @staticmethod
-    def backward(ctx, mask_grad):
+    def backward(ctx, mask_grad, rows_grad, cols_grad, overlap_grad):
         pixels, *saved = ctx.saved_tensors
-        buffers, layers = _Buffers(*saved[:7]), _Layers(*saved[7:])
+        buffers, layers, along = _Buffers(*saved[:7]), _Layers(*saved[7:10]), _Targets(*saved[10:])
+        F, P, H, W = layers.coverage.shape
+        profiled = len(along.frame) > 0
+        made = F if profiled else 0
+
+        def seed(grad: torch.Tensor | None, *shape: int) -> torch.Tensor:
+            return torch.zeros(shape, dtype=torch.float32, device=pixels.device) if grad is None else grad.float()
+
+        grads = (seed(mask_grad, F - made, P, H, W), seed(rows_grad, made, P, H), seed(cols_grad, made, P, W),
+                 seed(overlap_grad, made, P))
         moment = torch.zeros(*buffers.hull.shape, 3, dtype=torch.float32, device=pixels.device)
         with warp_scope(pixels.device):
-            grad = as_warp(mask_grad.to(torch.float32))
-            raster.rasterize_backward(ctx.sigma, *buffers.views()[:5], *layers.views(), grad, as_warp(moment, wp.vec3))
-        return _vertex_gradients(pixels, buffers.hull, buffers.count, moment), None, None, None, None, None, None
+            mask_grad, rows_grad, cols_grad, overlap_grad = (as_warp(g) for g in grads)
+            raster.rasterize_backward(ctx.sigma, *buffers.views()[:5], *layers.views(), mask_grad, *along.views(),
+                                      rows_grad, cols_grad, overlap_grad, as_warp(moment, wp.vec3))
+        vertex_grad = _vertex_gradients(pixels, buffers.hull, buffers.count, moment)
+        return vertex_grad, None, None, None, None, None, None, None, None
 
 
 class _Buffers(NamedTuple):
@@ -164,6 +247,17 @@ class _Buffers(NamedTuple):
         """Zero-copy Warp views."""
         types = (wp.vec2, None, None, wp.vec3, wp.vec4, None, wp.vec4)
         return [as_warp(buffer, dtype) for buffer, dtype in zip(self, types)]
+
+
+class _Targets(NamedTuple):
+    """The masks the profiles are taken against (empty: none)."""
+
+    frame: torch.Tensor  # (F,) int32 each frame's index into ``masks``
+    masks: torch.Tensor  # (T, P, H, W) float32 target masks
+
+    def views(self) -> list[wp.array]:
+        """Zero-copy Warp views."""
+        return [as_warp(x) for x in self]
 
 
 class _Layers(NamedTuple):

@@ -23,8 +23,9 @@ from warpskill.contract.camera import Intrinsics
 from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.projection import camera_rotation
 from warpskill.engine.records import Rollout, SceneInputs
-from warpskill.engine.rendering import render_silhouettes
+from warpskill.engine.rendering import render_silhouettes, silhouette_profiles
 from warpskill.engine.simulation import simulate as warp_simulate
+from warpskill.optimizer.losses import MaskProfile, MaskTargets
 from warpskill.optimizer.scene import SceneTrajectories
 
 
@@ -32,7 +33,9 @@ from warpskill.optimizer.scene import SceneTrajectories
 class Backend:
     """The engine under the optimiser: a rollout and a rasterizer with the signatures of
     :func:`warpskill.engine.simulation.simulate` (a :class:`~warpskill.engine.records.SceneInputs`
-    and the keyword options) and :func:`warpskill.engine.rendering.render_silhouettes`.
+    and the keyword options) and :func:`warpskill.engine.rendering.render_silhouettes`, and
+    the rasterizer's mask profiles (:func:`warpskill.engine.rendering.silhouette_profiles`),
+    or None to take them from its masks.
 
     ``warpskill bench speed`` swaps in the plain-Torch references through this.
     """
@@ -40,6 +43,7 @@ class Backend:
     name: str = "warp"
     simulate: Callable = warp_simulate
     render: Callable = render_silhouettes
+    profile: Callable | None = silhouette_profiles
 
 
 def groups(keys: Sequence[Hashable]) -> list[list[int]]:
@@ -69,24 +73,27 @@ def in_camera_frame(scene: SceneTrajectories) -> tuple[torch.Tensor, ...]:
 
 def render_many(
     scenes: Sequence[SceneTrajectories], intrinsics: Sequence[Intrinsics], sigma: float,
-    render: Callable = render_silhouettes,
-) -> list[torch.Tensor]:
-    """Soft visible masks (N_i, 2 + K_i, h_i, w_i) of each scene, one raster call per group.
+    backend: Backend = Backend(), targets: Sequence[MaskTargets] | None = None,
+) -> list[torch.Tensor] | list[MaskProfile]:
+    """Soft visible masks (N_i, 2 + K_i, h_i, w_i) of each scene, or with ``targets`` their
+    :class:`~warpskill.optimizer.losses.MaskProfile` against each scene's targets (without
+    forming the masks where the backend can), one raster call per group.
 
     Args:
         scenes: per-frame scenes (each with its own camera).
         intrinsics: each scene's working-resolution intrinsics.
         sigma: soft edge width [px].
-        render: the rasterizer (:attr:`Backend.render`).
+        backend: the rasterizer (:attr:`Backend.render`, :attr:`Backend.profile`).
+        targets: each scene's target masks (scenes may share them).
     """
     keys = [(intr.K.tobytes(), tuple(intr.image_size), scene.static_pos.shape[0], scene.hand_pos.dtype)
             for scene, intr in zip(scenes, intrinsics)]
-    out: list[torch.Tensor | None] = [None] * len(scenes)
+    out: list = [None] * len(scenes)
     for members in groups(keys):
         moved = [in_camera_frame(scenes[i]) for i in members]
         frames = [m[0].shape[0] for m in moved]
         zero = scenes[members[0]].camera_height.new_zeros(())
-        masks = render(
+        poses = (
             torch.cat([m[0] for m in moved]),
             torch.cat([m[1] for m in moved]),
             torch.cat([m[2] for m in moved]),
@@ -95,11 +102,33 @@ def render_many(
             zero,
             zero,
             intrinsics[members[0]],
-            sigma=sigma,
         )
-        for i, part in zip(members, masks.split(frames)):
+        if targets is not None and backend.profile is not None:
+            stacked, frame_index = _stacked_targets([targets[i] for i in members])
+            profiles = backend.profile(*poses, stacked, frame_index, sigma=sigma)
+            parts = [MaskProfile(*profile) for profile in zip(*(p.split(frames) for p in profiles))]
+        else:
+            parts = backend.render(*poses, sigma=sigma).split(frames)
+            if targets is not None:
+                parts = [MaskProfile.of(masks, targets[i]) for i, masks in zip(members, parts)]
+        for i, part in zip(members, parts):
             out[i] = part
     return out
+
+
+def _stacked_targets(targets: Sequence[MaskTargets]) -> tuple[torch.Tensor, torch.Tensor]:
+    """The distinct target masks of a group (T, C, h, w), stacked (copied only where there are
+    several), and each of the group's frames' index into them (sum N_i,)."""
+    distinct: dict[int, int] = {}  # id -> first row in the stack
+    stack, index, rows = [], [], 0
+    for target in targets:
+        if id(target) not in distinct:
+            distinct[id(target)] = rows
+            stack.append(target.masks)
+            rows += len(target.masks)
+        first = distinct[id(target)]
+        index.append(torch.arange(first, first + len(target.masks), device=target.masks.device))
+    return (stack[0] if len(stack) == 1 else torch.cat(stack)), torch.cat(index)
 
 
 def simulate_many(

@@ -55,7 +55,7 @@ def diou_loss(rendered: torch.Tensor, target: torch.Tensor | MaskTargets) -> tup
         of entries whose target is not empty.
     """
     targets = target if isinstance(target, MaskTargets) else MaskTargets(target.to(rendered))
-    profile = MaskProfile(rendered, targets)
+    profile = MaskProfile.of(rendered, targets)
     return _diou(profile, targets), targets.moments.mass > _EMPTY_MASS
 
 
@@ -66,7 +66,7 @@ def hidden_loss(rendered: torch.Tensor, targets: MaskTargets) -> torch.Tensor:
     it is wrong: it should be occluded or outside the image. An empty target elsewhere says
     nothing (:func:`diou_loss` gives it no term).
     """
-    return _hidden(MaskProfile(rendered, targets), targets)
+    return _hidden(MaskProfile.of(rendered, targets), targets)
 
 
 def box_loss(rendered: torch.Tensor, targets: MaskTargets) -> torch.Tensor:
@@ -80,14 +80,14 @@ def box_loss(rendered: torch.Tensor, targets: MaskTargets) -> torch.Tensor:
     ``mean +- sqrt(3) std`` per axis is its box, with gradients. Frames with an empty target
     count 0; an empty rendering counts 2, as in :func:`diou_loss`.
     """
-    return _box(MaskProfile(rendered, targets), targets)
+    return _box(MaskProfile.of(rendered, targets), targets)
 
 
-def masks_loss(rendered: torch.Tensor, targets: MaskTargets) -> torch.Tensor:
+def masks_loss(rendered: torch.Tensor | MaskProfile, targets: MaskTargets) -> torch.Tensor:
     """Per mask (N, C): :func:`diou_loss`, :func:`box_loss` on the channels drawn from boxes
     (``targets.boxed``) and :func:`hidden_loss` where a part is known to be out of sight
-    (``targets.absent``), from one pass over the rendered masks (:class:`MaskProfile`)."""
-    profile = MaskProfile(rendered, targets)
+    (``targets.absent``), from the rendered masks' profile (given, or from one pass over them)."""
+    profile = rendered if isinstance(rendered, MaskProfile) else MaskProfile.of(rendered, targets)
     per_mask = _diou(profile, targets)
     if targets.boxed is not None and bool(targets.boxed.any()):
         per_mask = torch.where(targets.boxed.to(per_mask.device), _box(profile, targets), per_mask)
@@ -98,16 +98,22 @@ def masks_loss(rendered: torch.Tensor, targets: MaskTargets) -> torch.Tensor:
 
 class MaskProfile:
     """What every mask loss reads of rendered masks (..., H, W): row sums (..., H), column
-    sums (..., W), and the overlap (...) with the targets, from one pass (:class:`_Profile`),
-    and the moments of :class:`_MaskMoments` from them."""
+    sums (..., W) and the overlap (...) with the targets, and the moments of
+    :class:`_MaskMoments` from them. The raster can give them without forming the masks
+    (:func:`warpskill.engine.rendering.silhouette_profiles`); :meth:`of` takes them from masks."""
 
-    def __init__(self, rendered: torch.Tensor, targets: MaskTargets):
+    def __init__(self, rows: torch.Tensor, cols: torch.Tensor, overlap: torch.Tensor):
+        self.overlap = overlap
+        self.moments = _MaskMoments(rows, cols)
+
+    @classmethod
+    def of(cls, rendered: torch.Tensor, targets: MaskTargets) -> "MaskProfile":
+        """The profile of masks ``rendered`` (..., H, W) against ``targets``, from one pass (:class:`_Profile`)."""
         if rendered.shape != targets.masks.shape:
             raise ValueError(
                 f"rendered {tuple(rendered.shape)} and target {tuple(targets.masks.shape)} masks differ in shape"
             )
-        rows, cols, self.overlap = _Profile.apply(rendered, targets.masks.to(rendered))
-        self.moments = _MaskMoments(rows, cols)
+        return cls(*_Profile.apply(rendered, targets.masks.to(rendered)))
 
 
 class _Profile(torch.autograd.Function):

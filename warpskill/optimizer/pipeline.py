@@ -179,7 +179,8 @@ def optimize_many(
 
     def stage_a(live: list[int]) -> list[dict[str, torch.Tensor]]:
         scenes = [candidates[j].scene() for j in live]
-        rendered = render_many(scenes, [inputs[owners[j]].intrinsics for j in live], sigma, backend.render)
+        rendered = render_many(scenes, [inputs[owners[j]].intrinsics for j in live], sigma, backend,
+                               [inputs[owners[j]].targets for j in live])
         return [
             initial_objective(scene, masks, inputs[owners[j]].targets, inputs[owners[j]].contact,
                               demos[owners[j]].fps, scene_weights[owners[j]], uncertain[owners[j]],
@@ -239,7 +240,7 @@ def optimize_many(
     def stage_b(live: list[int]) -> list[dict[str, torch.Tensor]]:
         results = simulate_scenes(live)
         rendered = render_many([r.scene for r in results], [inputs[physics_owners[b]].intrinsics for b in live],
-                               sigma, backend.render)
+                               sigma, backend, [inputs[physics_owners[b]].targets for b in live])
         return [
             physical_objective(result, masks, inputs[physics_owners[b]].targets, contacts[b],
                                inputs[physics_owners[b]].object_visible, scene_weights[physics_owners[b]],
@@ -253,7 +254,7 @@ def optimize_many(
         everything = list(range(len(scenes)))
         results = simulate_scenes(everything)
         rendered = render_many([r.scene for r in results], [inputs[physics_owners[b]].intrinsics for b in everything],
-                               sigma, backend.render)
+                               sigma, backend, [inputs[physics_owners[b]].targets for b in everything])
         fit = [float(perceptual_loss(masks, inputs[physics_owners[b]].targets, weights))
                for b, masks in zip(everything, rendered)]
     reconstructions = []

@@ -10,7 +10,7 @@ from warpskill.contract.camera import Intrinsics
 from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.rendering import render_silhouettes
 from warpskill.engine.rotations import yaw_rotation
-from warpskill.optimizer.losses import MaskTargets, masks_loss
+from warpskill.optimizer.losses import MaskProfile, MaskTargets, masks_loss
 from warpskill.optimizer.weights import LossWeights
 
 
@@ -60,15 +60,16 @@ def static_poses(xy: torch.Tensor, yaw: torch.Tensor, size: torch.Tensor) -> tup
     return pos, yaw_rotation(yaw)
 
 
-def perceptual_loss(rendered: torch.Tensor, targets: MaskTargets, weights: LossWeights) -> torch.Tensor:
-    """Weighted mean dIoU over frames: hand, object, then static channels (N, C, h, w); the
-    channels drawn from boxes (``targets.boxed``) compare boxes (:func:`box_loss`), and parts
-    known to be out of sight (``targets.absent``) are asked to vanish (:func:`hidden_loss`)."""
-    per_mask = masks_loss(rendered, targets)
+def perceptual_loss(rendered: torch.Tensor | MaskProfile, targets: MaskTargets, weights: LossWeights) -> torch.Tensor:
+    """Weighted mean dIoU over frames: hand, object, then static channels (N, C, h, w), from the
+    rendered masks or their :class:`~warpskill.optimizer.losses.MaskProfile`; the channels
+    drawn from boxes (``targets.boxed``) compare boxes (:func:`box_loss`), and parts known to
+    be out of sight (``targets.absent``) are asked to vanish (:func:`hidden_loss`)."""
+    per_mask = masks_loss(rendered, targets)  # (N, C)
     channel_weights = torch.tensor(
-        [weights.hand, weights.object] + [weights.static] * (rendered.shape[1] - 2),
-        dtype=rendered.dtype,
-        device=rendered.device,
+        [weights.hand, weights.object] + [weights.static] * (per_mask.shape[1] - 2),
+        dtype=per_mask.dtype,
+        device=per_mask.device,
     )
     return (per_mask * channel_weights).sum(1).mean()
 

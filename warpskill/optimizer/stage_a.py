@@ -420,7 +420,8 @@ def initial_objective(
 
     Args:
         scene: the per-frame scene.
-        rendered: (N, 2 + K, h, w) its soft silhouettes at the working resolution.
+        rendered: (N, 2 + K, h, w) its soft silhouettes at the working resolution, or their
+            :class:`~warpskill.optimizer.losses.MaskProfile` against ``targets``.
         targets: the masks at the working resolution.
         contact: (N,) contact signal in {0, 1}.
         fps: frame rate [1/s].

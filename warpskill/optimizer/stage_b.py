@@ -301,7 +301,8 @@ def physical_objective(
 
     Args:
         result: the simulated scene.
-        rendered: (N, 2 + K, h, w) its soft silhouettes at the working resolution.
+        rendered: (N, 2 + K, h, w) its soft silhouettes at the working resolution, or their
+            :class:`~warpskill.optimizer.losses.MaskProfile` against ``targets``.
         targets: (N, 2 + K, h, w) masks at the working resolution.
         contact: (N,) contact signal in {0, 1}.
         object_visible: (N,) 1 where the object's mask is not empty.
