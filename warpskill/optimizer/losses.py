@@ -17,7 +17,7 @@ class MaskTargets:
     """
 
     def __init__(self, masks: torch.Tensor, boxed: torch.Tensor | None = None, absent: torch.Tensor | None = None):
-        self.masks = masks
+        self.masks = masks.contiguous()  # read as is by the raster kernels, every iteration
         self.boxed = boxed
         self.absent = absent
         with torch.no_grad():
