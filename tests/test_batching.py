@@ -6,10 +6,11 @@ import torch
 
 from warpskill.contract.camera import Intrinsics
 from warpskill.engine.simulation import simulate
-from warpskill.optimizer.batching import render_many, simulate_many
+from warpskill.optimizer.batching import Backend, render_many, simulate_many
 from warpskill.optimizer.checkpoint import Checkpoint
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.loop import minimise
+from warpskill.optimizer.losses import MaskProfile, MaskTargets, masks_loss
 from warpskill.optimizer.pipeline import optimize, optimize_many
 from warpskill.optimizer.scene import SceneTrajectories, render_scene
 from warpskill.optimizer.stage_b import make_physical_scene
@@ -48,6 +49,38 @@ def test_render_many_matches_one_scene_at_a_time_values_and_gradients():
         for name, value in grad.items():
             np.testing.assert_allclose(value.numpy(), getattr(scene, name).grad.numpy(), rtol=1e-3, atol=1e-4,
                                        err_msg=name)
+
+
+def test_render_many_profiles_match_the_masks_profiles_values_and_gradients():
+    # Profiles straight from the raster, for a group of three scenes of which two share their
+    # targets (two hypotheses of one video), against the profiles of each scene's own masks.
+    intrinsics = Intrinsics.default(60, 107)
+    onto, behind = _truth_scene("put_onto", 0)[0], _truth_scene("put_behind", 2)[0]
+    nudged = SceneTrajectories(**{**vars(onto), "object_pos": onto.object_pos + 0.01})
+    cases = [onto, behind, nudged]
+    gen = torch.Generator().manual_seed(4)
+    shared, own = (MaskTargets((torch.rand(s.hand_pos.shape[0], 3, 60, 107, generator=gen) > 0.6).float())
+                   for s in (onto, behind))
+    targets = [shared, own, shared]
+    leaves = [{n: getattr(s, n).detach().clone().requires_grad_(True) for n in ("object_pos", "camera_height")}
+              for s in cases]
+
+    def loss(render):
+        scenes = [SceneTrajectories(**{**vars(s), **leaf}) for s, leaf in zip(cases, leaves)]
+        profiles = render(scenes)
+        total = sum(masks_loss(p, t).sum() for p, t in zip(profiles, targets))
+        grads = torch.autograd.grad(total, [x for leaf in leaves for x in leaf.values()])
+        return profiles, grads
+
+    batched, batched_grads = loss(lambda scenes: render_many(scenes, [intrinsics] * 3, 0.5, Backend(), targets))
+    alone, alone_grads = loss(lambda scenes: [MaskProfile.of(render_scene(s, intrinsics, 0.5), t)
+                                              for s, t in zip(scenes, targets)])
+    for a, b in zip(batched, alone):
+        assert isinstance(a, MaskProfile)
+        np.testing.assert_allclose(a.overlap.detach().numpy(), b.overlap.detach().numpy(), atol=2e-3)
+        np.testing.assert_allclose(a.moments.rows.detach().numpy(), b.moments.rows.detach().numpy(), atol=2e-4)
+    for a, b in zip(batched_grads, alone_grads):
+        np.testing.assert_allclose(a.numpy(), b.numpy(), rtol=1e-3, atol=1e-4)
 
 
 def test_simulate_many_pads_shorter_scenes_without_changing_them():
