@@ -343,8 +343,8 @@ def test_profiles_match_the_dense_masks_sums_and_gradients(dense_case):
 
 
 def test_profiles_read_each_frames_own_target_frame():
-    # Two frames that share one target frame (two hypotheses of one video) give the profiles of
-    # two frames with their targets repeated.
+    # Three frames that share one target frame (as hypotheses of one video share a video's
+    # targets) give the profiles of the three frames with that target repeated.
     s = SCENES["hand_in_front"]
     intrinsics = FULL.scaled(0.25)
     H, W = intrinsics.image_size

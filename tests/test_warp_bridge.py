@@ -20,7 +20,7 @@ def test_denormals_are_flushed_inside_the_scope_and_restored_after():
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's mallopt")
 def test_image_sized_buffers_are_reused_without_page_faults():
     assert keep_freed_memory()
-    shape = (110, 2, 60, 107)  # stage (a)'s masks on a dev video: 5.6 MB
+    shape = (110, 2, 60, 107)  # a raster layer of stage (a) on a dev video: 5.6 MB
     for _ in range(3):  # warm the heap up
         torch.zeros(shape)
     before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt

@@ -63,11 +63,11 @@ _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameters
 def keep_freed_memory() -> bool:
     """Ask glibc's allocator to keep the memory this process frees for reuse (once per process).
 
-    Every optimisation iteration allocates and frees the same image-sized buffers (masks,
-    raster layers, their gradients: megabytes each). By default glibc serves such blocks
+    Every optimisation iteration allocates and frees the same image-sized buffers (the
+    raster's coverage and depth layers: megabytes each). By default glibc serves such blocks
     with fresh ``mmap`` pages and returns them on free, so each reuse costs a page fault
     per 4 KiB: 298,000 faults and 0.65 s of system time in a 12 s reconstruction (dev video
-    6538), against 400 with the memory kept. Blocks up to 64 MiB then come from the heap,
+    6538, when the optimiser still formed the masks), against 400 with the memory kept. Blocks up to 64 MiB then come from the heap,
     whose top is returned to the system only beyond 1 GiB free; the peak memory is the same.
 
     Returns:
