@@ -47,8 +47,11 @@ MAX_SIDES = 24
 MAX_HULL = 32
 """Most hull vertices (a convex n-prism's silhouette has at most n + 2)."""
 
-CUTOFF = 12.0
-"""Coverage is exactly 0 where sd > CUTOFF * sigma and 1 where sd < -CUTOFF * sigma (sigmoid(-12) = 6e-6)."""
+CUTOFF = 8.0
+"""Coverage is exactly 0 where sd > CUTOFF * sigma and 1 where sd < -CUTOFF * sigma. The tail
+dropped, sigmoid(-8) = 3.4e-4 of a pixel, is a tenth of the masks' 8-bit step (1/255); a
+band of +-8 sigma instead of +-12 sigma saves a third of the raster's work, and moves the
+gradients of a dev video's scene by about 0.1 %."""
 
 MITER_CAP = 4.0
 """Bounds pad the hull by CUTOFF * sigma times the largest corner miter, capped here."""
