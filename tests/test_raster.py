@@ -219,10 +219,10 @@ def convex_hull(points: np.ndarray) -> list[int]:
     return chain(order) + chain(order[::-1])
 
 
-def dense_masks(pixels, planes, sides, K, image_size, sigma):
-    """Visible masks (F, P, H, W) without tiles or moments (coverage cut off as the kernels cut
-    it: exactly 0 or 1 beyond +-CUTOFF sigma); also returns sd (F, P, HW) and the hulls, so
-    that dL/dsd can be read off by autograd."""
+def dense_masks(pixels, planes, sides, K, image_size, sigma, cut=True):
+    """Visible masks (F, P, H, W) without tiles or moments (with ``cut``, coverage cut off as
+    the kernels cut it: exactly 0 or 1 beyond +-CUTOFF sigma); also returns sd (F, P, HW) and
+    the hulls, so that dL/dsd can be read off by autograd."""
     F, P = pixels.shape[:2]
     H, W = image_size
     v, u = torch.meshgrid(torch.arange(H) + 0.5, torch.arange(W) + 0.5, indexing="ij")
@@ -236,10 +236,11 @@ def dense_masks(pixels, planes, sides, K, image_size, sigma):
             e = torch.roll(a, -1, 0) - a
             normal = torch.stack([e[:, 1], -e[:, 0]], -1) / e.norm(dim=-1, keepdim=True)
             sd = ((p[:, None] - a[None]) * normal[None]).sum(-1).max(-1).values
-            sd.retain_grad()
+            if sd.requires_grad:
+                sd.retain_grad()
             sds.append(sd)
             hulls.append(idx)
-            limit = raster.CUTOFF * sigma
+            limit = raster.CUTOFF * sigma if cut else float("inf")
             cs.append(torch.where(sd.abs() <= limit, torch.sigmoid(-sd / sigma), (sd < 0).to(sd)))
             with torch.no_grad():  # depth at the pixel, or at the nearest hull point outside
                 s = (((p[:, None] - a[None]) * e[None]).sum(-1) / (e**2).sum(-1)).clamp(0, 1)
@@ -313,6 +314,21 @@ def test_vertex_gradients_match_dense_reference(dense_case):
     assert float((masks.detach().double() - c["dense_masks"]).abs().max()) < 2e-5  # float32
     rel = float((ours.grad - c["dense_grad"]).norm() / c["dense_grad"].norm())
     assert rel < 3e-4, f"vertex gradients differ from the dense reference by {rel:.2e}"  # float32 kernels
+
+
+def test_cut_off_drops_at_most_the_sigmoid_tail(dense_case):
+    # Against soft layers never cut off, the kernels' masks differ by at most the coverage
+    # the cut-off drops, sigmoid(-CUTOFF) per layer (a pixel in two bands: twice that).
+    c = dense_case
+    K = torch.as_tensor(FULL.resized(*c["image_size"]).K)
+    with torch.no_grad():
+        uncut, _, _ = dense_masks(c["pixels"], c["planes"], c["sides"], K, c["image_size"], c["sigma"], cut=False)
+        masks, *_ = _SoftSilhouettes.apply(
+            c["pixels"], c["planes"], c["visible"], c["sides"], c["camera_vec"], c["image_size"], c["sigma"], None, None
+        )
+    tail = 1.0 / (1.0 + math.exp(raster.CUTOFF))
+    gap = float((masks.double() - uncut).abs().max())
+    assert 0.1 * tail < gap < 2 * tail + 2e-5, f"cut-off changed a mask by {gap:.2e} (tail {tail:.2e})"
 
 
 def test_profiles_match_the_dense_masks_sums_and_gradients(dense_case):
