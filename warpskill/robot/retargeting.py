@@ -35,7 +35,7 @@ from warpskill.robot.model import HOME_Q, MAX_OPENING, Placement, Scene, make_sc
 from warpskill.robot.placement import rank_placements, reach_excess
 from warpskill.robot.plan import PlanError, RobotPlan
 from warpskill.robot.planner import DT, Planner
-from warpskill.robot.sizes import fit_sizes, rest_until
+from warpskill.robot.sizes import clear_path, fit_sizes, rest_until
 from warpskill.robot.targets import (
     PREGRASP,
     key_targets,
@@ -140,7 +140,9 @@ def robot_reconstruction(recon: Reconstruction, *, placement: Placement = Placem
     moves it no faster than :data:`CARRY_SPEED` to the next frame (a faster object is still
     being swung into view). The object rests there until k
     (:func:`~warpskill.robot.sizes.rest_until`); below the first held frame where no frame
-    qualifies. This is the one place that decides the object's start: the plan carries the
+    qualifies. Every object path is then made one the robot can follow
+    (:func:`~warpskill.robot.sizes.clear_path`: never inside its support, no steps down
+    while held). This is the one place that decides the object's start: the plan carries the
     result (:meth:`RobotPlan.scene`), which the replays and the video simulate.
 
     Args:
@@ -153,15 +155,16 @@ def robot_reconstruction(recon: Reconstruction, *, placement: Placement = Placem
     """
     fitted, note = fit_sizes(recon, object_size=object_size, static_sizes=static_sizes, keep_size=keep_size)
     if not fitted.grasped[0] > 0.5:
-        return fitted, note
+        return clear_path(fitted), note
     held = np.flatnonzero(fitted.grasped > 0.5)
-    base = make_scene(rest_until(fitted, int(held[-1])), placement).base
+    taken_at = lambda k: clear_path(rest_until(fitted, int(k)))  # noqa: E731
+    base = make_scene(taken_at(held[-1]), placement).base
     speed = np.append(np.linalg.norm(np.diff(recon.object_pos, axis=0), axis=1) * float(recon.fps), 0.0)  # (F,)
     for k in held[speed[held] <= CARRY_SPEED]:
-        robot_recon = rest_until(fitted, int(k))
+        robot_recon = taken_at(k)
         if _reachable(robot_recon, base):
             return robot_recon, note
-    return rest_until(fitted, int(held[0])), note
+    return taken_at(held[0]), note
 
 
 def _reachable(recon: Reconstruction, base: np.ndarray) -> bool:

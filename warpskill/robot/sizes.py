@@ -31,14 +31,17 @@ from warpskill.contract.reconstruction import Reconstruction
 from warpskill.robot.grasps import FIT_MARGIN
 from warpskill.robot.model import MAX_OPENING
 
-__all__ = ["SUBSTITUTE_WIDTH", "USABLE_OPENING", "fit_sizes", "needs_substitute", "rest_until", "resting_axis",
-           "upright"]
+__all__ = ["DESCENT_SPEED", "SUBSTITUTE_WIDTH", "USABLE_OPENING", "clear_path", "fit_sizes", "needs_substitute",
+           "rest_until", "resting_axis", "upright"]
 
 USABLE_OPENING = MAX_OPENING - FIT_MARGIN
 """[m] widest object edge the gripper closes on."""
 
 SUBSTITUTE_WIDTH = USABLE_OPENING - 0.01
 """[m] horizontal extents of a substitute object (the usable opening less a margin)."""
+
+DESCENT_SPEED = 0.5
+"""[m/s] fastest descent of a held object in the robot's version of the demonstration."""
 
 
 def _sizes(value, shape, what: str) -> np.ndarray:
@@ -124,6 +127,37 @@ def rest_until(recon: Reconstruction, k: int) -> Reconstruction:
     grasped[:k] = 0.0
     return dataclasses.replace(recon, object_pos=object_pos, object_rot=object_rot, hand_pos=hand_pos,
                                grasped=grasped)
+
+
+def clear_path(recon: Reconstruction, descent_speed: float = DESCENT_SPEED) -> Reconstruction:
+    """``recon`` with a held object's path the robot can follow: never inside its support, no steps down.
+
+    From the grasp onset to the release frame, the object's centre is raised where needed:
+    to rest on its support (the table or a static top under it) instead of sinking into it
+    (a reconstruction's contacts are soft, the robot's object is not, and a grasp pose on a
+    sunk object lies below the held poses that follow it), and so that it descends no faster
+    than ``descent_speed`` [m/s] (where the support under a carried object drops away, as it
+    leaves a static box's top, the path would otherwise step down within a frame, which no
+    slow-down of the replay makes trackable). The hand rises with the object it holds.
+    """
+    held = np.flatnonzero(recon.grasped > 0.5)
+    if len(held) == 0:
+        return recon
+    span = slice(int(held[0]), min(int(held[-1]) + 1, recon.num_frames - 1) + 1)
+    floor = _support(recon.object_pos[span, :2], 0.5 * min(recon.object_size[:2]), recon.static_pos,
+                     recon.static_rot, recon.static_size)
+    half = 0.5 * np.abs(recon.object_rot[span, 2, :]) @ recon.object_size
+    z = np.maximum(recon.object_pos[span, 2], floor + half)  # (span,) [m]
+    steps = np.diff(recon.t[span])
+    for j in range(1, len(z)):
+        z[j] = max(z[j], z[j - 1] - descent_speed * float(steps[j - 1]))
+    rise = z - recon.object_pos[span, 2]
+    if not np.any(rise > 0):
+        return recon
+    object_pos, hand_pos = recon.object_pos.copy(), recon.hand_pos.copy()
+    object_pos[span, 2] = z
+    hand_pos[span, 2] += rise
+    return dataclasses.replace(recon, object_pos=object_pos, hand_pos=hand_pos)
 
 
 def _onset(recon: Reconstruction) -> int:
