@@ -39,7 +39,7 @@ def assert_admissible(recon: Reconstruction, plan) -> None:
         assert min(d.min_distance for d in planner.robot.distances()) > 0.0
 
 
-def far_static(recon: Reconstruction, distance: float = 1.3) -> Reconstruction:
+def far_static(recon: Reconstruction, distance: float = 1.7) -> Reconstruction:
     """``recon`` with a static box ``distance`` to the object's right: the scene centre moves half of it away."""
     pos = recon.object_pos[0] + np.array([distance, 0.0, 0.0])
     pos[2] = 0.05
@@ -49,7 +49,8 @@ def far_static(recon: Reconstruction, distance: float = 1.3) -> Reconstruction:
 
 def test_the_robot_stands_where_it_can_do_the_task():
     recon = far_static(truth("pick_up", 0))
-    # At the default placement the cuboid lies 0.65 m to the side of the scene centre: out of reach.
+    # At the default placement the cuboid lies 0.85 m to the side of the scene centre, about 1 m from
+    # the base: out of the arm's reach.
     with pytest.raises(robot.PlanError):
         robot.retarget(recon, placement=robot.Placement())
     plan = robot.retarget(recon)
