@@ -158,3 +158,20 @@ def test_a_tilted_cuboid_rests_on_a_face(degrees):
     before = cuboid_corners(tilted.object_pos[0], tilted.object_rot[0], tilted.object_size)[:, 2].min()
     assert lowest[0] == pytest.approx(before, abs=1e-9)  # on the same support
     np.testing.assert_allclose(fitted.object_pos[:, :2], tilted.object_pos[:, :2])
+
+
+def test_placements_are_ranked_short_of_full_stretch():
+    from warpskill.robot.placement import COMFORT_REACH, REACH, SHOULDER, WRIST, reach_excess
+
+    def key(distance: float) -> np.ndarray:
+        """A top-down TCP pose whose wrist centre lies ``distance`` ahead of the shoulder, at its height."""
+        T = np.eye(4)
+        T[:3, :3] = np.diag([1.0, -1.0, -1.0])  # approach (local z) straight down
+        T[:3, 3] = (distance, 0.0, SHOULDER - WRIST)
+        return T
+
+    base = np.eye(4)
+    assert reach_excess(base, [[key(0.75)]]) == 0.0  # within the arm's reach ...
+    assert reach_excess(base, [[key(0.75)]], COMFORT_REACH) == pytest.approx(0.75 - COMFORT_REACH)  # ... not comfortably
+    assert reach_excess(base, [[key(REACH + 0.05)]]) == pytest.approx(0.05)
+    assert reach_excess(base, [[key(0.75)], [key(0.6)]], COMFORT_REACH) == 0.0  # the best grasp pose's

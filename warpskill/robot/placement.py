@@ -7,7 +7,8 @@ of a static box or the object's path is never taken. Each is scored on the task'
 poses (pre-grasp, grasp, held samples, release, retreat; of the best-ranked grasp poses):
 
 1. a cheap geometric proxy for every candidate: how far each key's wrist point lies beyond
-   the arm's reach from the shoulder, or inside the column above the base;
+   :data:`COMFORT_REACH` from the shoulder (short of full stretch, where the arm moves slowly
+   and lags a fast demonstration), or inside the column above the base;
 2. placo static IK (chained key to key, few iterations) for the default and the best
    :data:`IK_CANDIDATES` of the proxy: the summed reach errors, and the joint-limit and
    collision margins, plus a small cost for moving away from the default.
@@ -27,7 +28,7 @@ from warpskill.contract.reconstruction import Reconstruction
 from warpskill.robot.model import Placement, make_scene
 from warpskill.robot.planner import COLLISION_MARGIN, Planner
 
-__all__ = ["OFFSETS_X", "OFFSETS_Y", "YAWS", "candidate_placements", "rank_placements", "reach_excess"]
+__all__ = ["COMFORT_REACH", "OFFSETS_X", "OFFSETS_Y", "YAWS", "candidate_placements", "rank_placements", "reach_excess"]
 
 OFFSETS_X = (0.5, 0.42, 0.58, 0.34, 0.66)  # [m] scene centre ahead of the base
 OFFSETS_Y = (0.0, -0.08, 0.08, -0.16, 0.16)  # [m] scene centre to the base's left
@@ -36,6 +37,7 @@ BASE_CLEARANCE = 0.2  # [m] the base's column stays this far from static boxes a
 SHOULDER = 0.333  # [m] height of the Panda's shoulder above its base
 WRIST = 0.21  # [m] wrist centre behind the TCP along the approach
 REACH = 0.8  # [m] shoulder to wrist centre, fully stretched (a little less)
+COMFORT_REACH = 0.7  # [m] placements are ranked by the keys beyond this: near full stretch the arm is slow
 COLUMN = 0.15  # [m] the wrist cannot come closer than this to the base's vertical axis
 IK_CANDIDATES = 6  # candidates checked with IK after the proxy
 REACHED = 0.005  # [m] a key pose counts as reached within this ...
@@ -77,11 +79,11 @@ def _base_blocked(recon: Reconstruction, base: np.ndarray) -> bool:
     return False
 
 
-def reach_excess(base: np.ndarray, keys: list[list[np.ndarray]]) -> float:
+def reach_excess(base: np.ndarray, keys: list[list[np.ndarray]], reach: float = REACH) -> float:
     """Reach excess [m] of the key poses (4, 4) from ``base``, the best grasp pose's (the geometric proxy).
 
-    0 where some grasp pose's keys all lie within the arm's reach (:data:`REACH` from the
-    shoulder, outside the :data:`COLUMN` above the base); more than 0 for none.
+    0 where some grasp pose's keys all lie within ``reach`` (default :data:`REACH`, the
+    arm's) of the shoulder, outside the :data:`COLUMN` above the base; more than 0 for none.
     """
     shoulder = base[:3, 3] + SHOULDER * base[:3, 2]
     best = math.inf
@@ -89,7 +91,7 @@ def reach_excess(base: np.ndarray, keys: list[list[np.ndarray]]) -> float:
         excess = 0.0
         for T in pose_keys:
             wrist = T[:3, 3] - WRIST * T[:3, 2]
-            excess += max(0.0, float(np.linalg.norm(wrist - shoulder)) - REACH)
+            excess += max(0.0, float(np.linalg.norm(wrist - shoulder)) - reach)
             excess += max(0.0, COLUMN - float(np.linalg.norm(wrist[:2] - base[:2, 3])))
         best = min(best, excess)
     return best
@@ -135,7 +137,7 @@ def rank_placements(recon: Reconstruction, keys: list[list[np.ndarray]], default
         base = make_scene(recon, p).base
         if _base_blocked(recon, base):
             continue
-        proxies.append((reach_excess(base, keys) + DEVIATION * _deviation(p, default), p))
+        proxies.append((reach_excess(base, keys, COMFORT_REACH) + DEVIATION * _deviation(p, default), p))
     proxies.sort(key=lambda item: item[0])
     scored = [(cost0, default)]
     for _, p in proxies[:IK_CANDIDATES]:
