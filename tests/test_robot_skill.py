@@ -175,3 +175,27 @@ def test_placements_are_ranked_short_of_full_stretch():
     assert reach_excess(base, [[key(0.75)]], COMFORT_REACH) == pytest.approx(0.75 - COMFORT_REACH)  # ... not comfortably
     assert reach_excess(base, [[key(REACH + 0.05)]]) == pytest.approx(0.05)
     assert reach_excess(base, [[key(0.75)], [key(0.6)]], COMFORT_REACH) == 0.0  # the best grasp pose's
+
+
+def test_the_robot_never_follows_a_hand_path_through_the_object():
+    from warpskill.robot.targets import APPROACH_TIME, OBJECT_CLEARANCE
+
+    recon = truth("pull_left_to_right", 0)
+    first = robot.retarget(recon, placement=robot.Placement())
+    pregrasp = first.tcp[np.searchsorted(first.t, first.grasp_time - APPROACH_TIME), :3, 3]
+    # The robot follows the demonstrated hand path shifted to end at the pre-grasp; here that
+    # shifted path passes through the object's centre shortly before (the physics lets a
+    # reconstructed hand pass through the object before the contact).
+    t_pre = first.recon_time[np.searchsorted(first.t, first.grasp_time - APPROACH_TIME)]
+    k_pre = int(np.floor(t_pre * float(recon.fps)))
+    hand = recon.hand_pos.copy()
+    hand[k_pre - 4: k_pre - 1] = hand[k_pre] + recon.object_pos[0] - pregrasp
+    recon = dataclasses.replace(recon, hand_pos=hand)
+    plan = robot.retarget(recon, placement=robot.Placement())
+    assert plan.grasp_name == first.grasp_name
+    scene = plan.scene(recon)
+    before = (plan.t >= plan.start_time) & (plan.t < plan.grasp_time - APPROACH_TIME)
+    local = (plan.tcp[before, :3, 3] - scene.object_pos[0]) @ scene.object_rot[0]
+    outside = np.any(np.abs(local) >= 0.5 * scene.object_size + OBJECT_CLEARANCE - 1e-3, axis=1)
+    assert before.any() and outside.all()
+    assert robot.replay(plan, recon).success
