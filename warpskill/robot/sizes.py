@@ -12,7 +12,9 @@ on an edge, and a tall one would fall in the replay before the robot reaches it)
 An object already held in the first frame was carried into view (or moved before it) and
 never seen resting: :func:`rest_until` makes the robot's version of such a demonstration,
 in which the object rests below the frame the robot takes it over at
-(:func:`~warpskill.robot.retargeting.robot_reconstruction` chooses that frame).
+(:func:`~warpskill.robot.retargeting.robot_reconstruction` chooses that frame), and
+:func:`clear_path` makes every held path one the arm can track (never inside its support,
+no steps down).
 
 A grasp action (pick up, put ...) on an object wider than the gripper's usable opening on
 every face (both horizontal extents at the grasp onset) gets a substitute that fits: its
