@@ -172,7 +172,8 @@ def test_placements_are_ranked_short_of_full_stretch():
 
     base = np.eye(4)
     assert reach_excess(base, [[key(0.75)]]) == 0.0  # within the arm's reach ...
-    assert reach_excess(base, [[key(0.75)]], COMFORT_REACH) == pytest.approx(0.75 - COMFORT_REACH)  # ... not comfortably
+    # ... but not comfortably:
+    assert reach_excess(base, [[key(0.75)]], COMFORT_REACH) == pytest.approx(0.75 - COMFORT_REACH)
     assert reach_excess(base, [[key(REACH + 0.05)]]) == pytest.approx(0.05)
     assert reach_excess(base, [[key(0.75)], [key(0.6)]], COMFORT_REACH) == 0.0  # the best grasp pose's
 

@@ -67,8 +67,9 @@ def keep_freed_memory() -> bool:
     raster's coverage and depth layers: megabytes each). By default glibc serves such blocks
     with fresh ``mmap`` pages and returns them on free, so each reuse costs a page fault
     per 4 KiB: 298,000 faults and 0.65 s of system time in a 12 s reconstruction (dev video
-    6538, when the optimiser still formed the masks), against 400 with the memory kept. Blocks up to 64 MiB then come from the heap,
-    whose top is returned to the system only beyond 1 GiB free; the peak memory is the same.
+    6538, when the optimiser still formed the masks), against 400 with the memory kept.
+    Blocks up to 64 MiB then come from the heap, whose top is returned to the system only
+    beyond 1 GiB free; the peak memory is the same.
 
     Returns:
         Whether the setting took (False off glibc, e.g. on macOS or Windows: nothing changes).

@@ -106,7 +106,7 @@ def rest_until(recon: Reconstruction, k: int) -> Reconstruction:
         k: the grasp onset, a frame of the grasped span.
     """
     held = np.flatnonzero(recon.grasped > 0.5)
-    end = min(int(held[-1]) + 1, recon.num_frames - 1)
+    end = _release(recon, held)
     R = upright(recon.object_rot[k: k + 1], up=resting_axis(recon))[0]
     half = 0.5 * float(np.abs(R[2]) @ recon.object_size)  # [m] vertical half extent
     floor = _support(recon.object_pos[:, :2], 0.5 * min(recon.object_size[:2]), recon.static_pos,
@@ -131,28 +131,28 @@ def rest_until(recon: Reconstruction, k: int) -> Reconstruction:
                                grasped=grasped)
 
 
-def clear_path(recon: Reconstruction, descent_speed: float = DESCENT_SPEED) -> Reconstruction:
+def clear_path(recon: Reconstruction) -> Reconstruction:
     """``recon`` with a held object's path the robot can follow: never inside its support, no steps down.
 
     From the grasp onset to the release frame, the object's centre is raised where needed:
     to rest on its support (the table or a static top under it) instead of sinking into it
     (a reconstruction's contacts are soft, the robot's object is not, and a grasp pose on a
     sunk object lies below the held poses that follow it), and so that it descends no faster
-    than ``descent_speed`` [m/s] (where the support under a carried object drops away, as it
+    than :data:`DESCENT_SPEED` (where the support under a carried object drops away, as it
     leaves a static box's top, the path would otherwise step down within a frame, which no
     slow-down of the replay makes trackable). The hand rises with the object it holds.
     """
     held = np.flatnonzero(recon.grasped > 0.5)
     if len(held) == 0:
         return recon
-    span = slice(int(held[0]), min(int(held[-1]) + 1, recon.num_frames - 1) + 1)
+    span = slice(int(held[0]), _release(recon, held) + 1)
     floor = _support(recon.object_pos[span, :2], 0.5 * min(recon.object_size[:2]), recon.static_pos,
                      recon.static_rot, recon.static_size)
     half = 0.5 * np.abs(recon.object_rot[span, 2, :]) @ recon.object_size
     z = np.maximum(recon.object_pos[span, 2], floor + half)  # (span,) [m]
     steps = np.diff(recon.t[span])
     for j in range(1, len(z)):
-        z[j] = max(z[j], z[j - 1] - descent_speed * float(steps[j - 1]))
+        z[j] = max(z[j], z[j - 1] - DESCENT_SPEED * float(steps[j - 1]))
     rise = z - recon.object_pos[span, 2]
     if not np.any(rise > 0):
         return recon
@@ -160,6 +160,11 @@ def clear_path(recon: Reconstruction, descent_speed: float = DESCENT_SPEED) -> R
     object_pos[span, 2] = z
     hand_pos[span, 2] += rise
     return dataclasses.replace(recon, object_pos=object_pos, hand_pos=hand_pos)
+
+
+def _release(recon: Reconstruction, held: np.ndarray) -> int:
+    """The release frame: the one after the last ``held`` frame (the last frame where the video ends held)."""
+    return min(int(held[-1]) + 1, recon.num_frames - 1)
 
 
 def _onset(recon: Reconstruction) -> int:
@@ -235,7 +240,7 @@ def fit_sizes(recon: Reconstruction, *, object_size=None, static_sizes=None,
     ds = s_new - s_old
     held = np.flatnonzero(recon.grasped > 0.5)
     if len(held):
-        a, b = int(held[0]), min(int(held[-1]) + 1, recon.num_frames - 1)
+        a, b = int(held[0]), _release(recon, held)
         if b > a:
             ds[a:b + 1] = np.interp(np.arange(a, b + 1), [a, b], [ds[a], ds[b]])
     object_pos = recon.object_pos.copy()
