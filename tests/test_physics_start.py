@@ -6,7 +6,7 @@ import torch
 
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.scene import SceneTrajectories
-from warpskill.optimizer.stage_b import make_physical_scene
+from warpskill.optimizer.stage_b import isolated_misfit_weights, make_physical_scene
 
 N, FPS, ONSET = 16, 12.0, 8
 SIZE = 0.08  # [m] cube edge
@@ -50,3 +50,50 @@ def test_an_object_that_stage_a_kept_still_stays_where_it_is():
     fit = _fit(0.0)
     scene = make_physical_scene(fit, CONTACT, FPS, OptimizeConfig())
     assert torch.equal(scene.object_pos0.detach(), fit.object_pos[0])
+
+
+def _sliding_hand(frames: int, bump: slice, height: float) -> SceneTrajectories:
+    """Stage (a)'s per-frame scene: a hand sliding along +x at 10 cm/s, 10 cm above the
+    ground, that stage (a) put ``height`` [m] higher in the ``bump`` frames; a cube far away."""
+    t = torch.arange(frames, dtype=torch.float32)
+    hand_pos = torch.stack([0.1 * t / FPS, torch.full_like(t, 0.4), torch.full_like(t, 0.1)], 1)
+    hand_pos[bump, 2] += height
+    eye = torch.eye(3)
+    return SceneTrajectories(
+        hand_pos=hand_pos, hand_rot=eye.expand(frames, 3, 3).clone(),
+        object_pos=torch.tensor([0.5, 0.4, SIZE / 2]).expand(frames, 3).clone(),
+        object_rot=eye.expand(frames, 3, 3).clone(), object_size=torch.full((3,), SIZE),
+        static_pos=torch.zeros(0, 3), static_rot=torch.zeros(0, 3, 3), static_size=torch.zeros(0, 3),
+        camera_height=torch.tensor(0.45), camera_elevation=torch.tensor(0.6),
+    )
+
+
+def test_the_hand_spline_starts_past_frames_whose_hand_stage_a_could_not_match():
+    frames, bump = 36, slice(17, 19)
+    fit = _sliding_hand(frames, bump, 0.15)
+    hand_loss = np.full(frames, 0.2)
+    hand_loss[bump] = 0.9  # those two frames' hand masks were not matched
+
+    def start_height_error(loss) -> float:
+        scene = make_physical_scene(fit, np.zeros(frames, dtype=bool), FPS, OptimizeConfig(), hand_loss=loss)
+        with torch.no_grad():
+            return float((scene().rollout.hand_pos[:, 2] - 0.1).abs().max())
+
+    assert start_height_error(None) > 0.05  # fitted alike, the misplaced frames raise the spline
+    assert start_height_error(hand_loss) < 0.005
+
+
+def test_only_isolated_misfits_lose_weight():
+    spike = np.full(30, 0.2)
+    spike[12:14] = 0.9
+    weights = isolated_misfit_weights(spike)
+    assert weights[12:14].max() < 1e-3
+    assert np.delete(weights, [12, 13]).min() == 1.0
+    # A long stretch fitted worse (a cylinder against a real hand's box) is the norm, not a misfit.
+    stretch = np.where(np.arange(30) < 10, 0.2, 0.6)
+    assert isolated_misfit_weights(stretch).min() > 0.99
+
+
+def test_misfit_weights_refuse_missing_losses():
+    with pytest.raises(ValueError, match="hand_loss"):
+        isolated_misfit_weights(np.array([0.1, np.nan, 0.2]))

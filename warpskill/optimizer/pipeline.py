@@ -28,6 +28,7 @@ from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.inputs import cut_by_static, held_after_contact, rests_on_static, working_inputs
 from warpskill.optimizer.known import check_known
 from warpskill.optimizer.loop import minimise
+from warpskill.optimizer.losses import masks_loss
 from warpskill.optimizer.scene import SceneTrajectories, ends_behind_static, perceptual_loss
 from warpskill.optimizer.stage_a import (
     OBJECT_DEPTH_HYPOTHESES,
@@ -228,8 +229,13 @@ def optimize_many(
         onset = np.flatnonzero(signal)
         return len(onset) > 0 and not bool(inputs[i].object_visible[: onset[0]].any())
 
+    with torch.no_grad():  # how well stage (a) matched each frame's hand: the spline's start weighs by it
+        profiles = render_many(starts, [inputs[i].intrinsics for i in physics_owners], sigma, backend,
+                               [inputs[i].targets for i in physics_owners])
+        hand_losses = [masks_loss(profile, inputs[i].targets)[:, 0].cpu().double().numpy()
+                       for i, profile in zip(physics_owners, profiles)]
     scenes = [make_physical_scene(start, signal, demos[physics_owners[b]].fps, config, knowns[physics_owners[b]],
-                                  unseen_before_contact(physics_owners[b], signal)).to(device)
+                                  unseen_before_contact(physics_owners[b], signal), hand_losses[b]).to(device)
               for b, (start, signal) in enumerate(zip(starts, signals))]
 
     def simulate_scenes(live: list[int]) -> list[PhysicalRollout]:

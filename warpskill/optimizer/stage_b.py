@@ -37,6 +37,8 @@ from warpskill.optimizer.weights import LossWeights
 
 CONTACT_FIT_WEIGHT = 50.0  # contact frames' weight in the hand spline's least-squares fit
 MAX_ONSET_SHIFT = 0.02  # [m] largest shift of the hand path that puts the tip inside at the onset
+MISFIT_WINDOW = 4  # frames on each side of the running median of stage (a)'s hand loss
+MISFIT_SCALE = 0.2  # hand dIoU above that median at which a frame's weight in the spline's fit falls to 1/e
 
 
 @dataclass
@@ -71,6 +73,8 @@ class PhysicalScene(torch.nn.Module):
         known: lengths held at their values (:data:`warpskill.optimizer.known.KNOWN_LENGTHS`).
         unseen_before_contact: the object's mask is empty in every frame before the first
             contact frame (it was carried into the view).
+        hand_loss: (N,) stage (a)'s hand dIoU per frame (None: every frame fits alike); the
+            hand spline's fit weighs frames by :func:`isolated_misfit_weights` of it.
     """
 
     def __init__(
@@ -86,6 +90,7 @@ class PhysicalScene(torch.nn.Module):
         physics: PhysicsConfig,
         known: dict[str, float] | None = None,
         unseen_before_contact: bool = False,
+        hand_loss: np.ndarray | None = None,
     ):
         super().__init__()
         self.known = dict(known or {})
@@ -111,7 +116,8 @@ class PhysicalScene(torch.nn.Module):
         grasp_target = torch.where(torch.as_tensor(contact, dtype=torch.bool), grasp_level, -grasp_level)
         self.hand_rot6 = P(rotation_to_6d(fit.hand_rot[0]))
         self.grasp0 = P(grasp_target[0].reshape(()).clone())
-        control = self._fit_control(fit, contact, grasp_target, basis, dt)
+        frame_weight = np.ones(N) if hand_loss is None else isolated_misfit_weights(hand_loss)
+        control = self._fit_control(fit, contact, frame_weight, grasp_target, basis, dt)
         self.control = P(control)
         gap, normal = self._grasp_onset_gap(fit, contact, control, basis, dt, grasp_level)
         # A correction for the spline's error, not a relocation: far from the object, stage (a)
@@ -133,20 +139,22 @@ class PhysicalScene(torch.nn.Module):
         self.camera_elevation = P(fit.camera_elevation.clone())
 
     def _fit_control(
-        self, fit: SceneTrajectories, contact: np.ndarray, grasp_target: torch.Tensor, basis: np.ndarray, dt: float
+        self, fit: SceneTrajectories, contact: np.ndarray, frame_weight: np.ndarray, grasp_target: torch.Tensor,
+        basis: np.ndarray, dt: float,
     ) -> torch.Tensor:
         """Knot velocities (knots, 7) that reproduce stage (a)'s hand motion and the contact.
 
         Positions and the grasp signal are integrals of the spline, linear in the knots, so
         they are fitted in least squares on their integrated basis; contact frames weigh
-        more, because the tip must be inside the object there for the grasp to engage.
-        Angular velocities are fitted to the frame-to-frame rotations.
+        more, because the tip must be inside the object there for the grasp to engage, and
+        positions are weighed by ``frame_weight`` (N,) besides. Angular velocities are fitted
+        to the frame-to-frame rotations.
         """
         spf = self.steps_per_frame
         N = self.num_frames
         cumulative = np.concatenate([np.zeros((1, basis.shape[1])), np.cumsum(basis, 0) * dt])[::spf]  # (N, knots)
         ridge = 1e-6 * np.eye(basis.shape[1])
-        weight = np.sqrt(1.0 + CONTACT_FIT_WEIGHT * np.asarray(contact, dtype=float))[:, None]
+        weight = np.sqrt(frame_weight * (1.0 + CONTACT_FIT_WEIGHT * np.asarray(contact, dtype=float)))[:, None]
 
         def solve(design: np.ndarray, rhs: np.ndarray, w: np.ndarray | float = 1.0) -> np.ndarray:
             design, rhs = w * design, w * rhs
@@ -257,6 +265,25 @@ class PhysicalScene(torch.nn.Module):
         return self.assemble(simulate(self.simulation_inputs(), **self.simulation_options()))
 
 
+def isolated_misfit_weights(hand_loss: np.ndarray) -> np.ndarray:
+    """Weights (N,) in (0, 1] of the frames in the hand spline's fit, from stage (a)'s hand
+    dIoU per frame ``hand_loss`` (N,): ``exp(-(excess / MISFIT_SCALE)^2)``, the excess being
+    the loss above its running median over 2 MISFIT_WINDOW + 1 frames.
+
+    Stage (a) places the hand anew in every frame; where it could not match one or two
+    frames' hand masks (an ambiguous silhouette), its path jumps there, and the physics
+    stage, which stays near the spline it starts from, would keep the jump. An isolated
+    misfit barely pulls the spline; a long stretch of poor fit (a cylinder against a real
+    hand's box) is the video's norm and keeps its weight.
+    """
+    loss = np.asarray(hand_loss, dtype=float)
+    if loss.ndim != 1 or not np.isfinite(loss).all():
+        raise ValueError(f"hand_loss must be (N,) finite values, got shape {loss.shape}")
+    window = np.lib.stride_tricks.sliding_window_view(np.pad(loss, MISFIT_WINDOW, mode="edge"), 2 * MISFIT_WINDOW + 1)
+    excess = (loss - np.median(window, axis=-1)).clip(min=0.0)
+    return np.exp(-((excess / MISFIT_SCALE) ** 2))
+
+
 def _drift_before_contact(fit: SceneTrajectories, contact: np.ndarray) -> float:
     """How far [m] stage (a)'s object centre is, at the first contact frame, from where it
     starts (0 without contact)."""
@@ -268,10 +295,10 @@ def _drift_before_contact(fit: SceneTrajectories, contact: np.ndarray) -> float:
 
 def make_physical_scene(
     fit: SceneTrajectories, contact_signal: np.ndarray, fps: float, config: OptimizeConfig,
-    known: dict[str, float] | None = None, unseen_before_contact: bool = False,
+    known: dict[str, float] | None = None, unseen_before_contact: bool = False, hand_loss: np.ndarray | None = None,
 ) -> PhysicalScene:
     """Stage (b)'s parameters started from the per-frame scene ``fit`` (on the CPU), ``known`` lengths held
-    (``unseen_before_contact``: see :class:`PhysicalScene`)."""
+    (``unseen_before_contact``, ``hand_loss``: see :class:`PhysicalScene`)."""
     return PhysicalScene(
         fit,
         contact_signal,
@@ -283,6 +310,7 @@ def make_physical_scene(
         physics=config.physics,
         known=known,
         unseen_before_contact=unseen_before_contact,
+        hand_loss=hand_loss,
     )
 
 
