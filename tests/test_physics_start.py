@@ -94,6 +94,8 @@ def test_only_isolated_misfits_lose_weight():
     assert isolated_misfit_weights(stretch).min() > 0.99
 
 
-def test_misfit_weights_refuse_missing_losses():
+def test_misfit_weights_refuse_missing_or_misaligned_losses():
     with pytest.raises(ValueError, match="hand_loss"):
         isolated_misfit_weights(np.array([0.1, np.nan, 0.2]))
+    with pytest.raises(ValueError, match=r"hand_loss must be \(16,\)"):
+        make_physical_scene(_fit(0.0), CONTACT, FPS, OptimizeConfig(), hand_loss=np.zeros(N - 1))

@@ -116,6 +116,8 @@ class PhysicalScene(torch.nn.Module):
         grasp_target = torch.where(torch.as_tensor(contact, dtype=torch.bool), grasp_level, -grasp_level)
         self.hand_rot6 = P(rotation_to_6d(fit.hand_rot[0]))
         self.grasp0 = P(grasp_target[0].reshape(()).clone())
+        if hand_loss is not None and np.shape(hand_loss) != (N,):
+            raise ValueError(f"hand_loss must be ({N},), one value per frame of the fit, got {np.shape(hand_loss)}")
         frame_weight = np.ones(N) if hand_loss is None else isolated_misfit_weights(hand_loss)
         control = self._fit_control(fit, contact, frame_weight, grasp_target, basis, dt)
         self.control = P(control)
