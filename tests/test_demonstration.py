@@ -281,8 +281,9 @@ def test_mask_stack_area_averages():
     np.testing.assert_allclose(stack[0, 1], expected)
     np.testing.assert_array_equal(stack[2, 1], 0.0)  # invisible frame
     np.testing.assert_allclose(stack[:, 0].sum(axis=(1, 2)), demo.hand_mask.sum(axis=(1, 2)) / 4)
-    np.testing.assert_array_equal(demo.mask_stack(H, W), np.stack(
-        [demo.hand_mask, demo.object_mask, *demo.static_mask], axis=1))
+    full = demo.mask_stack(H, W)  # at the masks' own size: the masks themselves, as float32
+    assert full.dtype == np.float32
+    np.testing.assert_array_equal(full, np.stack([demo.hand_mask, demo.object_mask, *demo.static_mask], axis=1))
 
 
 def test_resized_keeps_bool_masks_and_rescales_intrinsics():

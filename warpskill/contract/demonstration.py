@@ -307,6 +307,10 @@ def _area_resize(masks: np.ndarray, height: int, width: int) -> np.ndarray:
     """Area-average bool masks (..., H, W) to (..., height, width) float32 in [0, 1] (cv2.INTER_AREA)."""
     if height < 1 or width < 1:
         raise ValueError(f"output size must be positive, got {height} x {width}")
-    images = masks.reshape(-1, *masks.shape[-2:]).astype(np.float32)
-    resized = [cv2.resize(image, (width, height), interpolation=cv2.INTER_AREA) for image in images]
-    return np.array(resized, dtype=np.float32).reshape(*masks.shape[:-2], height, width)
+    if masks.shape[-2:] == (height, width):
+        return masks.astype(np.float32)
+    images = masks.reshape(-1, *masks.shape[-2:])
+    resized = np.empty((len(images), height, width), dtype=np.float32)
+    for image, out in zip(images, resized):  # one image at a time: no full-size float copy of the stack
+        out[...] = cv2.resize(image.astype(np.float32), (width, height), interpolation=cv2.INTER_AREA)
+    return resized.reshape(*masks.shape[:-2], height, width)
