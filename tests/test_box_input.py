@@ -8,7 +8,8 @@ from warpskill.data.box_annotations import box_masks
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.inputs import drawn_from_boxes, working_inputs
 from warpskill.optimizer.losses import MaskTargets, box_loss, diou_loss
-from warpskill.optimizer.scene import camera_height_prior
+from warpskill.optimizer.pipeline import optimize
+from warpskill.optimizer.scene import camera_height_prior, footprint_prior
 from warpskill.optimizer.stage_a import initial_guess
 from warpskill.optimizer.weights import LossWeights
 from warpskill.synthetic import make_demonstration
@@ -108,6 +109,49 @@ def test_the_camera_height_prior_is_zero_at_the_typical_height_and_grows_in_log(
     assert prior(weights.typical_camera_height) == pytest.approx(0.0, abs=1e-12)
     assert prior(weights.typical_camera_height * 2) == pytest.approx(prior(weights.typical_camera_height / 2))
     assert prior(0.1) > prior(0.3) > 0
+
+
+def test_the_footprint_prior_is_zero_for_a_square_footprint_and_grows_in_log_of_depth_over_width():
+    weights = LossWeights()
+
+    def prior(size):
+        return footprint_prior(type("S", (), {"object_size": torch.tensor(size, dtype=torch.float64)})(), weights)
+
+    assert float(prior([0.08, 0.08, 0.20])) == pytest.approx(0.0, abs=1e-12)  # the height plays no part
+    assert float(prior([0.05, 0.10, 0.07])) == pytest.approx(float(prior([0.10, 0.05, 0.07])))
+    assert float(prior([0.05, 0.10, 0.07])) == pytest.approx(weights.object_footprint * np.log(2.0) ** 2)
+    assert float(prior([0.05, 0.20, 0.07])) > float(prior([0.05, 0.10, 0.07])) > 0
+    size = torch.tensor([0.06, 0.11, 0.09], dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(lambda s: footprint_prior(type("S", (), {"object_size": s})(), weights), (size,))
+
+
+def test_the_footprint_prior_keeps_a_box_drawn_object_about_as_deep_as_wide():
+    # A box says nothing of the object's depth; with a known height, a deeper object farther
+    # away draws the same box. Stage (a) on a box demonstration, without and with the prior.
+    demo = make_demonstration("put_next_to", seed=6, input="boxes", duration=2.0)
+    height = float(demo.truth["object_size"][2])
+
+    def depth_over_width(footprint):
+        config = OptimizeConfig(init_iterations=80, weights=LossWeights(object_footprint=footprint))
+        fit = optimize(demo, progress=False, init_only=True, config=config, known={"object_height": height})
+        return fit.object_size[1] / fit.object_size[0]
+
+    without, with_prior = depth_over_width(0.0), depth_over_width(LossWeights().object_footprint)
+    assert abs(np.log(with_prior)) < abs(np.log(without)) - 0.05
+
+
+def test_each_prior_is_on_only_where_it_has_something_to_decide():
+    weights = LossWeights()
+
+    def priors(known_length, object_from_boxes):
+        scene = weights.for_scene(known_length=known_length, object_from_boxes=object_from_boxes)
+        assert scene.object == weights.object  # the other weights as they are
+        return scene.camera_height, scene.object_footprint
+
+    assert priors(False, False) == (weights.camera_height, 0.0)
+    assert priors(False, True) == (weights.camera_height, 0.0)
+    assert priors(True, False) == (0.0, 0.0)
+    assert priors(True, True) == (0.0, weights.object_footprint)
 
 
 def test_boxed_hands_leave_the_initial_camera_at_its_typical_height():

@@ -137,8 +137,8 @@ def optimize_many(
     store = Checkpoint(checkpoint, run_id)
     inputs = [working_inputs(demo, config, device) for demo in demos]
     weights, sigma = config.weights, config.sigma
-    # A known length fixes the scale: the prior on the camera's height then has nothing to decide.
-    scene_weights = [replace(weights, camera_height=0.0) if k else weights for k in knowns]
+    scene_weights = [weights.for_scene(known_length=bool(k), object_from_boxes=bool(given.targets.boxed[1]))
+                     for k, given in zip(knowns, inputs)]
     # Frames after the contact signal's end where the object may still be held: stage (a)
     # leaves them to the masks, stage (b) simulates both endings and the video decides.
     held = [held_after_contact(given.masks.cpu().numpy(), given.contact_signal) for given in inputs]
