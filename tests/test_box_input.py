@@ -151,7 +151,7 @@ def test_each_prior_is_on_only_where_it_has_something_to_decide():
     assert priors(False, False) == (weights.camera_height, 0.0)
     assert priors(False, True) == (weights.camera_height, 0.0)
     assert priors(True, False) == (0.0, 0.0)
-    assert priors(True, True) == (0.0, weights.object_footprint)
+    assert priors(True, True) == (weights.camera_height, weights.object_footprint)  # a box leaves the scale free
 
 
 def test_boxed_hands_leave_the_initial_camera_at_its_typical_height():
