@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import gc
+import warnings
+
 import numpy as np
 import pytest
 
@@ -236,6 +239,19 @@ def test_not_an_npz(tmp_path):
         Demonstration.load(single)
     with pytest.raises(FileNotFoundError):
         Demonstration.load(tmp_path / "absent.npz")
+    with pytest.raises(DemonstrationError, match="not a readable .npz"):
+        Demonstration.load(tmp_path)  # a folder
+
+
+def test_a_corrupt_archive_leaves_no_file_open(tmp_path):
+    broken = tmp_path / "broken.npz"
+    broken.write_bytes(b"PK\x03\x04" + b"garbage" * 20)  # a zip's magic, then nothing readable
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(DemonstrationError, match="not a readable .npz"):
+            Demonstration.load(broken)
+        gc.collect()
+    assert not [w for w in caught if issubclass(w.category, ResourceWarning)]
 
 
 def test_corrupt_zip(tmp_path):

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import secrets
 import zipfile
 import zlib
 from collections.abc import Mapping
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
@@ -15,37 +17,42 @@ import numpy as np
 _READ_ERRORS = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError, RuntimeError)
 
 
-def read_npz(path: str | os.PathLike, error: type[Exception]) -> dict[str, np.ndarray]:
+def read_npz(path: str | os.PathLike | BinaryIO, error: type[Exception]) -> dict[str, np.ndarray]:
     """Read every array of the ``.npz`` archive at ``path`` into memory.
 
     Arrays are read eagerly, so a corrupt member is reported here rather than on first use.
     Pickled (object) arrays, and members that are not ``.npy`` arrays, are refused.
 
     Args:
-        path: the archive.
+        path: the archive, or a binary file object holding it.
         error: exception class raised, with the path in its message, for a file that is
             not a readable ``.npz`` archive.
 
     Raises:
         FileNotFoundError: ``path`` does not exist.
     """
-    try:
-        archive = np.load(path, allow_pickle=False)
+    try:  # opened (and closed) here: np.load leaks the handle it opens on a corrupt archive
+        handle = contextlib.nullcontext(path) if hasattr(path, "read") else open(path, "rb")
     except FileNotFoundError:
         raise
-    except _READ_ERRORS as exc:
+    except OSError as exc:
         raise error(f"{path}: not a readable .npz archive ({type(exc).__name__}: {exc})") from exc
-    if not isinstance(archive, np.lib.npyio.NpzFile):
-        raise error(f"{path}: not an .npz archive (a single array)")
-    arrays = {}
-    with archive:
-        for key in archive.files:
-            try:
-                arrays[key] = archive[key]
-            except _READ_ERRORS as exc:
-                raise error(f"{path}: {key}: unreadable ({type(exc).__name__}: {exc})") from exc
-            if not isinstance(arrays[key], np.ndarray):  # a member without the .npy suffix: its raw bytes
-                raise error(f"{path}: {key}: not a NumPy array (an archive member without the .npy suffix)")
+    with handle as handle:
+        try:
+            archive = np.load(handle, allow_pickle=False)
+        except _READ_ERRORS as exc:
+            raise error(f"{path}: not a readable .npz archive ({type(exc).__name__}: {exc})") from exc
+        if not isinstance(archive, np.lib.npyio.NpzFile):
+            raise error(f"{path}: not an .npz archive (a single array)")
+        arrays = {}
+        with archive:
+            for key in archive.files:
+                try:
+                    arrays[key] = archive[key]
+                except _READ_ERRORS as exc:
+                    raise error(f"{path}: {key}: unreadable ({type(exc).__name__}: {exc})") from exc
+                if not isinstance(arrays[key], np.ndarray):  # a member without the .npy suffix: its raw bytes
+                    raise error(f"{path}: {key}: not a NumPy array (an archive member without the .npy suffix)")
     return arrays
 
 
