@@ -37,9 +37,9 @@ def read_npz(path: str | os.PathLike | BinaryIO, error: type[Exception]) -> dict
         raise
     except OSError as exc:
         raise error(f"{path}: not a readable .npz archive ({type(exc).__name__}: {exc})") from exc
-    with handle as handle:
+    with handle as source:
         try:
-            archive = np.load(handle, allow_pickle=False)
+            archive = np.load(source, allow_pickle=False)
         except _READ_ERRORS as exc:
             raise error(f"{path}: not a readable .npz archive ({type(exc).__name__}: {exc})") from exc
         if not isinstance(archive, np.lib.npyio.NpzFile):

@@ -25,7 +25,7 @@ class LossWeights:
     smoothness: float = 1e-4  #: stage (a): squared accelerations
     resting: float = 0.1  #: stage (a): object speed without contact
     penetration: float = 1e3  #: stage (a): below-ground depth
-    camera_height: float = 0.5  #: log(camera height / typical_camera_height)^2, both stages (off with known lengths)
+    camera_height: float = 0.5  #: log(camera height / typical_camera_height)^2, both stages (see :meth:`for_scene`)
     typical_camera_height: float = 0.45  #: [m] a table filmed by a person standing or sitting at it
     object_footprint: float = 0.5  #: log(object depth / width)^2, both stages (see :meth:`for_scene`)
 
@@ -39,8 +39,9 @@ class LossWeights:
         object centre 4.3 cm off with it, median, 5.4 cm without; 87/90 and 89/90 succeed).
         The footprint prior is on only for an object drawn from boxes with a known length:
         there the box fixes neither the object's depth nor, through it, its distance (90
-        synthetic box demonstrations with a known object height: 89/90 and object centre
-        5.4 cm off with it, 86/90 and 6.4 cm without). A true silhouette shows the depth
+        synthetic box demonstrations with a known object height, before the camera-height
+        prior was kept on there: 89/90 and object centre 5.4 cm off with it, 86/90 and
+        6.4 cm without). A true silhouette shows the depth
         through the top face (27 mask demonstrations, known height: 24/27 and 3.2 cm with
         it, 27/27 and 2.4 cm without), and without a known length the prior lost a
         development video (8675) and one of 90 box demonstrations.
