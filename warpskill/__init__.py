@@ -3,7 +3,7 @@
 The public API, loaded on first use (so the command line starts fast):
 
 - data: :class:`Demonstration`, :class:`Reconstruction`, :data:`ACTIONS`
-- reconstruction: :func:`optimize`, :func:`optimize_many`, :class:`OptimizeConfig`, :class:`LossWeights`
+- reconstruction: :func:`optimize`, :func:`optimize_many`, :class:`OptimizeOptions`, :class:`OptimizeConfig`, :class:`LossWeights`
 - metric: :func:`evaluate`
 - engine: :func:`simulate`, :class:`PhysicsConfig`, :func:`render_silhouettes`
 - synthetic data: :func:`make_demonstration`
@@ -28,6 +28,7 @@ _EXPORTS = {
     "optimize": "optimizer.pipeline",
     "optimize_many": "optimizer.pipeline",
     "OptimizeConfig": "optimizer.config",
+    "OptimizeOptions": "optimizer.options",
     "LossWeights": "optimizer.weights",
     "evaluate": "contract.evaluation",
     "Evaluation": "contract.evaluation",

@@ -36,11 +36,14 @@ FIELD_SHAPES: dict[str, tuple[str | int, ...]] = {
     "image_size": (2,),
     "action": (),
     "loss": (),
+    "options": (),
 }
 """Every reconstruction key and its shape; ``N`` frames and ``K`` static objects."""
 
 _INTEGER_FIELDS = ("image_size",)
-_STRING_FIELDS = ("action",)
+_STRING_FIELDS = ("action", "options")
+OPTIONAL_FIELDS = {"action": "", "options": ""}
+"""Keys a file may lack, and the value they then take (unknown action; options not recorded)."""
 
 
 class ReconstructionError(ValueError):
@@ -90,7 +93,7 @@ def _typed_array(key: str, name: str, value: object) -> np.ndarray:
         array = np.asarray("" if value is None else value)
         if array.dtype.kind != "U":
             raise ReconstructionError(f"{key}: expected a string, got dtype {array.dtype}")
-        if array.ndim == 0 and str(array):
+        if name == "action" and array.ndim == 0 and str(array):
             try:
                 check_action(str(array))
             except ValueError as exc:
@@ -158,6 +161,8 @@ class Reconstruction:
     image_size: np.ndarray
     action: np.ndarray
     loss: np.ndarray
+    #: JSON of the optimisation options that made it (``OptimizeOptions.to_json``); "" if not recorded
+    options: np.ndarray = dataclasses.field(default_factory=lambda: np.array(""))
 
     def __post_init__(self) -> None:
         fields = {name: getattr(self, name) for name in FIELD_SHAPES}
@@ -176,7 +181,8 @@ class Reconstruction:
             FileNotFoundError: ``path`` does not exist.
         """
         arrays = read_npz(path, ReconstructionError)
-        arrays.setdefault("action", np.array(""))
+        for name, default in OPTIONAL_FIELDS.items():
+            arrays.setdefault(name, np.array(default))
         missing = [name for name in FIELD_SHAPES if name not in arrays]
         if missing:
             raise ReconstructionError(f"{path}: missing key(s) {', '.join(missing)}")

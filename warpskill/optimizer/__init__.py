@@ -10,7 +10,8 @@ checkpoints, batching of many scenes per engine call, and the mask losses. May i
 
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.known import KNOWN_LENGTHS, parse_known
+from warpskill.optimizer.options import OptimizeOptions
 from warpskill.optimizer.pipeline import optimize, optimize_many
 from warpskill.optimizer.weights import LossWeights
 
-__all__ = ["KNOWN_LENGTHS", "LossWeights", "OptimizeConfig", "optimize", "optimize_many", "parse_known"]
+__all__ = ["KNOWN_LENGTHS", "LossWeights", "OptimizeConfig", "OptimizeOptions", "optimize", "optimize_many", "parse_known"]

@@ -24,7 +24,7 @@ from warpskill.engine.device import resolve_device
 from warpskill.engine.distances import box_signed_distance
 from warpskill.optimizer.batching import Backend, render_many, simulate_many
 from warpskill.optimizer.checkpoint import Checkpoint, fingerprint
-from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.options import OptimizeOptions
 from warpskill.optimizer.inputs import cut_by_static, held_after_contact, rests_on_static, working_inputs
 from warpskill.optimizer.known import check_known
 from warpskill.optimizer.loop import minimise
@@ -45,54 +45,42 @@ from warpskill.optimizer.stage_b import (
 
 def optimize(
     demo: Demonstration,
+    options: OptimizeOptions | None = None,
     *,
-    device: str | torch.device | None = None,
-    iterations: int | None = None,
-    seed: int = 0,
     progress: bool = True,
-    config: OptimizeConfig | None = None,
-    init_only: bool = False,
     checkpoint: str | os.PathLike | None = None,
     backend: Backend | None = None,
-    known: Mapping[str, float] | None = None,
+    **fields,
 ) -> Reconstruction:
     """Reconstruct physically admissible hand and object trajectories from a demonstration.
 
     Args:
         demo: the demonstration (masks, contact, fps, camera intrinsics).
-        device: torch/Warp device (``"cpu"``, ``"cuda"``, ...); default CPU.
-        iterations: physics-stage iterations; default ``config.iterations``.
-        seed: seed of torch's generator (results are deterministic per seed and device).
+        options: what to optimise and how (:class:`OptimizeOptions`); default: all defaults.
         progress: show progress bars.
-        config: optimisation settings; default :class:`OptimizeConfig`.
-        init_only: stop after stage (a) (the paper's "initialisation only" ablation).
         checkpoint: a file where the run saves its state and best result as it goes; an
-            existing checkpoint of the same demonstration and settings is resumed.
+            existing checkpoint of the same demonstration and options is resumed.
         backend: the rollout and rasterizer (default: the Warp engine).
-        known: lengths known in advance [m], which fix the scene's scale, e.g.
-            ``{"object_height": 0.10}``; names in :data:`warpskill.optimizer.known.KNOWN_LENGTHS`.
-            Both stages hold them exactly (stage (a) through its global scale, stage (b)
-            by not optimising them).
+        **fields: fields of :class:`OptimizeOptions` replacing those of ``options``
+            (``device``, ``seed``, ``init_only``, ``known``, ``config``), and ``iterations``
+            for ``config.iterations``; e.g. ``known={"object_height": 0.10}``.
 
     Returns:
-        The reconstruction, in the world frame of FORMATS.md, at the video's frames.
+        The reconstruction, in the world frame of docs/formats.md, at the video's frames,
+        with ``options`` saved in it.
     """
-    return optimize_many([demo], device=device, iterations=iterations, seed=seed, progress=progress, config=config,
-                         init_only=init_only, checkpoint=checkpoint, backend=backend, known=known)[0]
+    return optimize_many([demo], options, progress=progress, checkpoint=checkpoint, backend=backend, **fields)[0]
 
 
 def optimize_many(
     demos: Sequence[Demonstration],
+    options: OptimizeOptions | None = None,
     *,
-    device: str | torch.device | None = None,
-    iterations: int | None = None,
-    seed: int = 0,
+    known_each: Sequence[Mapping[str, float] | None] | None = None,
     progress: bool = True,
-    config: OptimizeConfig | None = None,
-    init_only: bool = False,
     checkpoint: str | os.PathLike | None = None,
     backend: Backend | None = None,
-    known: Mapping[str, float] | Sequence[Mapping[str, float] | None] | None = None,
+    **fields,
 ) -> list[Reconstruction]:
     """Reconstruct B demonstrations side by side: :func:`optimize` on each, in shared engine calls.
 
@@ -105,32 +93,31 @@ def optimize_many(
 
     Args:
         demos: the demonstrations.
-        device, iterations, seed, progress, config, init_only, backend: as :func:`optimize`.
+        options, progress, backend, fields: as :func:`optimize`.
+        known_each: one mapping of known lengths (or None) per demonstration, replacing
+            ``options.known`` for that demonstration (e.g. each synthetic scene's true height).
         checkpoint: one file for the whole batch (resumed only for the same demonstrations
-            and settings).
-        known: as :func:`optimize`, for every demonstration, or a sequence with one
-            mapping (or None) per demonstration.
+            and options).
 
     Returns:
         One reconstruction per demonstration, in order.
 
     Raises:
-        ValueError: no demonstrations.
+        ValueError: no demonstrations, or ``known_each`` of another length.
     """
+    options = OptimizeOptions.build(options, **fields)
     if len(demos) == 0:
         raise ValueError("optimize_many needs at least one demonstration")
-    config = config or OptimizeConfig()
-    if iterations is not None:
-        config = replace(config, iterations=int(iterations))
+    config, seed, init_only = options.config, options.seed, options.init_only
     backend = backend or Backend()
-    device = resolve_device(device)
+    device = resolve_device(options.device)
     torch.manual_seed(seed)
-    if known is None or isinstance(known, Mapping):
-        knowns = [check_known(known)] * len(demos)
+    if known_each is None:
+        knowns = [options.known_lengths] * len(demos)
     else:
-        if len(known) != len(demos):
-            raise ValueError(f"known: {len(known)} mappings for {len(demos)} demonstrations")
-        knowns = [check_known(k) for k in known]
+        if len(known_each) != len(demos):
+            raise ValueError(f"known_each: {len(known_each)} mappings for {len(demos)} demonstrations")
+        knowns = [check_known(k) for k in known_each]
     run_id = fingerprint(demos, config, seed, backend)
     if any(knowns):
         run_id = hashlib.sha256((run_id + repr(knowns)).encode()).hexdigest()
@@ -205,10 +192,11 @@ def optimize_many(
                            if owners[j] == i and supported[j] is not None])
     if init_only:
         reconstructions = []
-        for demo, given, fit, loss in zip(demos, inputs, fits, stage_a_losses):
+        for i, (demo, given, fit, loss) in enumerate(zip(demos, inputs, fits, stage_a_losses)):
             grasp = (2 * given.contact - 1) * weights.grasp_margin
             distance = box_signed_distance(fit.hand_pos, fit.object_pos, fit.object_rot, fit.object_size)
-            reconstructions.append(_reconstruction(demo, fit, grasp, given.contact * (distance < 0), loss))
+            reconstructions.append(_reconstruction(demo, fit, grasp, given.contact * (distance < 0), loss,
+                                                   replace(options, known=tuple(knowns[i].items()))))
         return reconstructions
 
     # Stage (b): the physics, once per contact hypothesis (the signal as given and, where the
@@ -273,7 +261,7 @@ def optimize_many(
         b = own[best_simulation([fit[b] for b in own], contradicted)]
         result = results[b]
         reconstructions.append(_reconstruction(demo, result.scene, result.rollout.grasp, result.rollout.grasped,
-                                               losses[b]))
+                                               losses[b], replace(options, known=tuple(knowns[i].items()))))
     return reconstructions
 
 
@@ -285,7 +273,8 @@ def best_simulation(fits: Sequence[float], contradicted: Sequence[bool]) -> int:
 
 
 def _reconstruction(
-    demo: Demonstration, scene: SceneTrajectories, grasp: torch.Tensor, grasped: torch.Tensor, loss: float
+    demo: Demonstration, scene: SceneTrajectories, grasp: torch.Tensor, grasped: torch.Tensor, loss: float,
+    options: OptimizeOptions,
 ) -> Reconstruction:
     """The FORMATS.md reconstruction of a per-frame scene, at the demonstration's full resolution."""
     n = lambda x: x.detach().cpu().double().numpy()  # noqa: E731
@@ -309,4 +298,5 @@ def _reconstruction(
         image_size=np.asarray(demo.image_size, dtype=np.int64),
         action=demo.action or "",
         loss=np.float64(loss),
+        options=options.to_json(),
     )
