@@ -6,11 +6,11 @@ import torch
 
 from warpskill.data.box_annotations import box_masks
 from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.guess import initial_guess
 from warpskill.optimizer.inputs import drawn_from_boxes, working_inputs
 from warpskill.optimizer.losses import MaskTargets, box_loss, diou_loss
 from warpskill.optimizer.pipeline import optimize
 from warpskill.optimizer.scene import camera_height_prior, footprint_prior
-from warpskill.optimizer.stage_a import initial_guess
 from warpskill.optimizer.weights import LossWeights
 from warpskill.synthetic import make_demonstration
 
@@ -45,6 +45,7 @@ def test_box_demonstrations_are_recognised():
     assert drawn_from_boxes(demo.hand_mask.astype(bool))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("input, boxed", [("boxes", True), ("masks", False)])
 def test_a_hand_and_object_drawn_from_boxes_are_compared_by_their_boxes(input, boxed):
     demo = make_demonstration("put_onto", seed=0, duration=2.0, input=input)
@@ -91,6 +92,7 @@ def test_box_loss_of_empty_masks():
     assert torch.isfinite(rendered.grad).all()
 
 
+@pytest.mark.slow
 def test_box_loss_gradient_matches_finite_differences():
     rng = np.random.default_rng(3)
     target = torch.as_tensor(box_masks(np.array([[5.0, 4.0, 17.0, 13.0]]), (16, 24)), dtype=torch.float64)
@@ -125,6 +127,7 @@ def test_the_footprint_prior_is_zero_for_a_square_footprint_and_grows_in_log_of_
     assert torch.autograd.gradcheck(lambda s: footprint_prior(type("S", (), {"object_size": s})(), weights), (size,))
 
 
+@pytest.mark.slow
 def test_the_footprint_prior_keeps_a_box_drawn_object_about_as_deep_as_wide():
     # A box says nothing of the object's depth; with a known height, a deeper object farther
     # away draws the same box. Stage (a) on a box demonstration, without and with the prior.
@@ -158,11 +161,10 @@ def test_boxed_hands_leave_the_initial_camera_at_its_typical_height():
     demo = make_demonstration("pull_left_to_right", seed=0, image_size=(60, 107), duration=2.0, input="boxes")
     masks = demo.mask_stack(60, 107)
     guess = initial_guess(masks, demo.contact, demo.intrinsics, demo.num_static, hand_width=False)
-    from warpskill.optimizer.stage_a import INITIAL_CAMERA_HEIGHT
-
-    assert float(guess.camera_height) == pytest.approx(INITIAL_CAMERA_HEIGHT)
+    typical = LossWeights().typical_camera_height
+    assert float(guess.camera_height) == pytest.approx(typical)
     measured = initial_guess(masks, demo.contact, demo.intrinsics, demo.num_static, hand_width=True)
-    assert float(measured.camera_height) != pytest.approx(INITIAL_CAMERA_HEIGHT)
+    assert float(measured.camera_height) != pytest.approx(typical)
 
 
 def test_parts_out_of_sight_are_runs_of_empty_frames_of_a_part_seen_elsewhere():

@@ -16,6 +16,7 @@ def put_onto():
     return make_demonstration("put_onto", seed=0, image_size=(60, 107), duration=2.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, value", [("object_height", 0.1), ("camera_height", 0.6), ("static_width", 0.2)])
 def test_a_known_length_comes_out_exactly(put_onto, name, value):
     recon = optimize(put_onto, config=SMALL, progress=False, known={name: value})
@@ -49,10 +50,10 @@ def test_known_lengths_are_checked():
 def test_the_command_line_takes_known_lengths():
     import argparse
 
-    from warpskill.cli.common import add_optimise_options
+    from warpskill.cli.common import add_optimize_options
 
     parser = argparse.ArgumentParser()
-    add_optimise_options(parser)
+    add_optimize_options(parser)
     args = parser.parse_args(["--known", "object_height=0.10", "static_height=0.05"])
     assert parse_known(args.known) == {"object_height": 0.10, "static_height": 0.05}
     assert np.isclose(parse_known(args.known)["object_height"], 0.1)
@@ -67,7 +68,7 @@ def test_the_hand_tip_depth_comes_from_the_masks_width_at_the_tip(axis, toleranc
     from warpskill.contract.geometry import frame_from_axis
     from warpskill.engine.projection import project, world_to_camera
     from warpskill.engine.raycast import raycast_masks
-    from warpskill.optimizer.stage_a import _hand_depth, _MaskGeometry
+    from warpskill.optimizer.measurements import MaskGeometry, hand_depth
 
     # The default camera's pixels are not square (fx != fy): a hand lying across the view is
     # measured top to bottom. A hand reaching down from the camera's side (local z up and
@@ -81,7 +82,7 @@ def test_the_hand_tip_depth_comes_from_the_masks_width_at_the_tip(axis, toleranc
     f64 = lambda x: torch.tensor(x, dtype=torch.float64)  # noqa: E731
     camera = world_to_camera(f64(tip), f64(height), f64(elevation))
     tip_pixel = project(camera, torch.as_tensor(intrinsics.K)).numpy()
-    estimate = _hand_depth(_MaskGeometry(masks[:, 0].astype(float)), tip_pixel, intrinsics.K)
+    estimate = hand_depth(MaskGeometry(masks[:, 0].astype(float)), tip_pixel, intrinsics.K)
     assert estimate == pytest.approx(float(camera[0, 2]), rel=tolerance)
 
 
@@ -92,7 +93,7 @@ def test_the_hand_tilt_towards_the_camera_comes_from_its_foreshortening():
     from warpskill.contract.geometry import frame_from_axis
     from warpskill.engine.projection import camera_rotation
     from warpskill.engine.raycast import raycast_masks
-    from warpskill.optimizer.stage_a import TYPICAL_HAND_TILT, _hand_tilt, _MaskGeometry
+    from warpskill.optimizer.measurements import TYPICAL_HAND_TILT, MaskGeometry, hand_tilt
 
     intrinsics = Intrinsics.default(120, 214)
     height, elevation = 0.45, 0.6
@@ -103,7 +104,7 @@ def test_the_hand_tilt_towards_the_camera_comes_from_its_foreshortening():
         masks = raycast_masks(np.array([[0.02, 0.45, 0.06]]), rot, np.zeros((1, 0, 3)), np.zeros((1, 0, 3, 3)),
                               np.zeros((0, 3)), height, elevation, intrinsics)
         truth = -float((to_camera @ rot[0, :, 2])[2])  # the axis's component towards the camera
-        return _hand_tilt(_MaskGeometry(masks[:, 0].astype(float)), intrinsics.K), truth
+        return hand_tilt(MaskGeometry(masks[:, 0].astype(float)), intrinsics.K), truth
 
     # Reaching down towards the camera: short in the image, read as tilted well past the
     # typical forearm (perspective lengthens the near part: an underestimate, 0.61 here).
@@ -115,20 +116,21 @@ def test_the_hand_tilt_towards_the_camera_comes_from_its_foreshortening():
 
 def test_a_hand_mask_one_pixel_thin_reads_as_the_typical_tilt_and_no_depth():
     from warpskill.contract.camera import Intrinsics
-    from warpskill.optimizer.stage_a import TYPICAL_HAND_TILT, _hand_depth, _hand_tilt, _MaskGeometry
+    from warpskill.optimizer.measurements import TYPICAL_HAND_TILT, MaskGeometry, hand_depth, hand_tilt
 
     masks = np.zeros((1, 60, 107))
     masks[0, 30, 20:60] = 1.0  # a segmenter's sliver: no width across it
-    geom, K = _MaskGeometry(masks), Intrinsics.default(60, 107).K
-    assert _hand_tilt(geom, K) == TYPICAL_HAND_TILT
-    assert _hand_depth(geom, np.array([[20.0, 30.0]]), K) is None  # the camera starts at its typical height
+    geom, K = MaskGeometry(masks), Intrinsics.default(60, 107).K
+    assert hand_tilt(geom, K) == TYPICAL_HAND_TILT
+    assert hand_depth(geom, np.array([[20.0, 30.0]]), K) is None  # the camera starts at its typical height
 
 
 def test_the_guess_leans_a_hand_reaching_down_towards_the_camera(put_onto):
     import torch
 
     from warpskill.optimizer.inputs import working_inputs
-    from warpskill.optimizer.stage_a import TYPICAL_HAND_TILT, initial_guess
+    from warpskill.optimizer.guess import initial_guess
+    from warpskill.optimizer.measurements import TYPICAL_HAND_TILT
 
     given = working_inputs(put_onto, OptimizeConfig(), torch.device("cpu"))
 

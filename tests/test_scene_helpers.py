@@ -13,7 +13,7 @@ from warpskill.engine.rotations import (
     yaw_rotation,
 )
 from warpskill.optimizer.scene import positive, positive_inverse
-from warpskill.optimizer.stage_a import _far_from_contact
+from warpskill.optimizer.stage_a import far_from_contact
 
 
 def test_6d_rotations_are_orthonormal_and_round_trip():
@@ -69,4 +69,4 @@ def test_majority_filter_removes_isolated_flips_only():
 
 def test_far_from_contact_excludes_frames_next_to_contact():
     contact = torch.tensor([0, 0, 0, 0, 1, 1, 0, 0, 0, 0], dtype=torch.float32)
-    assert _far_from_contact(contact, 2).tolist() == [1, 1, 0, 0, 0, 0, 0, 0, 1, 1]
+    assert far_from_contact(contact, 2).tolist() == [1, 1, 0, 0, 0, 0, 0, 0, 1, 1]

@@ -1,10 +1,13 @@
 """The two-stage optimisation of the paper: a demonstration in, a reconstruction out.
 
-Owns the pipeline (:func:`optimize`, :func:`optimize_many`), its settings
-(:class:`OptimizeConfig`, :class:`LossWeights`), the scene both stages share
-(:mod:`.scene`), stage (a) (:mod:`.stage_a`: a physics-free fit of per-frame poses) and
-stage (b) (:mod:`.stage_b`: the physics scene and its objective), the Adam loop and its
-checkpoints, batching of many scenes per engine call, and the mask losses. May import
+Owns the pipeline (:func:`optimize`, :func:`optimize_many`; :mod:`.pipeline`), the
+hypotheses it tries and chooses between (:mod:`.hypotheses`), its settings
+(:class:`OptimizeOptions`, :class:`OptimizeConfig`, :class:`LossWeights`), the working
+inputs (:mod:`.inputs`), the masks' measurements (:mod:`.measurements`) and the first guess
+read off them (:mod:`.guess`), the scene both stages share (:mod:`.scene`), stage (a)
+(:mod:`.stage_a`: a physics-free fit of per-frame poses) and stage (b) (:mod:`.stage_b`: the
+physics scene and its objective), the Adam loop (:mod:`.loop`) and its checkpoints,
+batching of many scenes per engine call, and the mask losses. May import
 :mod:`warpskill.engine` and :mod:`warpskill.contract`; never data, robot, bench or visual.
 """
 

@@ -47,8 +47,8 @@ def working_inputs(demo: Demonstration, config: OptimizeConfig, device: torch.de
     # The hand and the object drawn from boxes are compared by their boxes: a cuboid that
     # fills the ellipse in an object's box by area is smaller (and lower) than the object.
     # Static boxes keep the area fit: annotators' static boxes are partly amodal (they keep
-    # what the object covers), and comparing their boxes measured worse (known object height,
-    # boxes: object centre 5.5 cm off, median, against 2.8 cm with the area fit).
+    # what the object covers), and comparing their boxes placed the object worse
+    # (docs/results-history.md).
     boxed = torch.zeros(masks.shape[1], dtype=torch.bool, device=device)
     boxed[:2] = torch.tensor([drawn_from_boxes(np.asarray(m, dtype=bool)) for m in (demo.hand_mask, demo.object_mask)])
     hand_boxed = bool(boxed[0])

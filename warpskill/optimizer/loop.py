@@ -64,6 +64,9 @@ def minimise(
         return [b for b in range(count) if groups[b]["lr"] >= learning_rate * config.min_lr_ratio]
 
     bar = tqdm(total=iterations, initial=start, desc=label, disable=not progress, leave=False)
+    # The bar sums over every module: its latest loss (a stopped module's last) beside its best,
+    # so the two totals are of the same quantity and best <= loss.
+    latest = list(best_loss)
     iteration = start
     while iteration < iterations and (active := live()):
         optimizer.zero_grad(set_to_none=True)  # modules that have stopped get no gradient: Adam skips them
@@ -76,6 +79,7 @@ def minimise(
         losses.sum().backward()
         lr_before = [group["lr"] for group in groups]
         for b, value in zip(active, values):
+            latest[b] = value
             if value < best_loss[b]:
                 best_loss[b], best_state[b] = value, copy_state(modules[b])
             # Warm-up: Adam's first steps move every parameter by about lr, whatever its gradient,
@@ -95,7 +99,7 @@ def minimise(
                 for b in _behind_rivals(rivals, best_loss, margin):
                     groups[b]["lr"] = 0.0
         bar.update(1)
-        bar.set_postfix(loss=f"{sum(values):.4f}", best=f"{sum(best_loss):.4f}", lr=f"{groups[active[0]]['lr']:.1e}",
+        bar.set_postfix(loss=f"{sum(latest):.4f}", best=f"{sum(best_loss):.4f}", lr=f"{groups[active[0]]['lr']:.1e}",
                         **({"running": f"{len(active)}/{count}"} if count > 1 else {}))
         if iteration % config.checkpoint_every == 0:
             save(iteration)

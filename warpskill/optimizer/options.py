@@ -1,6 +1,6 @@
 """What a user asks of one optimisation: one frozen record, made once, passed whole.
 
-:class:`OptimizeOptions` is built once, by the command line (:meth:`OptimizeOptions.from_cli`)
+:class:`OptimizeOptions` is built once, by the command line (``warpskill.cli.common.optimize_options``)
 or by the API (:func:`warpskill.optimize`'s keywords), and travels unchanged through
 :func:`~warpskill.optimizer.optimize_many`, the Ray tasks (pickled as it is), the
 benchmarks and ``warpskill run``; it is saved with the reconstruction

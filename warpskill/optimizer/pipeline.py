@@ -1,11 +1,14 @@
 """``warpskill.optimize``: a demonstration in, physically admissible trajectories out.
 
-Two stages, as in the paper: (a) a physics-free fit of per-frame poses (:mod:`.initialize`),
-from each hypothesis about the object's depth (the lower loss wins), gives a first
-camera and trajectories; (b) the physics stage (:mod:`.physical_scene`)
-optimises the initial states, the hand's velocity spline, the sizes and the camera through
-the Warp engine. Both use Adam (amsgrad) with a reduce-on-plateau schedule that returns to
-the best parameters whenever it lowers the learning rate.
+The paper's two stages over a list of hypotheses (:mod:`.hypotheses`): the masks and what
+they leave open (:func:`~.hypotheses.read_evidence`); stage (a) (:mod:`.stage_a`), a
+physics-free fit of per-frame poses from each object-depth guess (:mod:`.guess`), whose
+lowest loss wins; stage (b) (:mod:`.stage_b`), which optimises the initial states, the
+hand's velocity spline, the sizes and the camera through the Warp engine from the winner
+(and any placement on the static box), once per contact signal variant; and the choice of
+the simulation that matches the masks best. Both stages use Adam (amsgrad) with a
+reduce-on-plateau schedule that returns to the best parameters whenever it lowers the
+learning rate (:mod:`.loop`).
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from __future__ import annotations
 import hashlib
 import os
 from dataclasses import replace
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 import torch
@@ -24,23 +27,28 @@ from warpskill.engine.device import resolve_device
 from warpskill.engine.distances import box_signed_distance
 from warpskill.optimizer.batching import Backend, render_many, simulate_many
 from warpskill.optimizer.checkpoint import Checkpoint, fingerprint
-from warpskill.optimizer.options import OptimizeOptions
-from warpskill.optimizer.inputs import cut_by_static, held_after_contact, rests_on_static, working_inputs
+from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.hypotheses import (
+    Candidate,
+    Evidence,
+    PhysicsHypothesis,
+    chosen_simulation,
+    physics_hypotheses,
+    read_evidence,
+    rival_groups,
+    stage_a_candidates,
+    stage_a_winners,
+    unseen_before_contact,
+)
 from warpskill.optimizer.known import check_known
 from warpskill.optimizer.loop import minimise
 from warpskill.optimizer.losses import masks_loss
-from warpskill.optimizer.scene import SceneTrajectories, ends_behind_static, perceptual_loss
-from warpskill.optimizer.stage_a import (
-    OBJECT_DEPTH_HYPOTHESES,
-    InitialParameters,
-    initial_guess,
-    initial_objective,
-)
-from warpskill.optimizer.stage_b import (
-    PhysicalRollout,
-    make_physical_scene,
-    physical_objective,
-)
+from warpskill.optimizer.options import OptimizeOptions
+from warpskill.optimizer.scene import SceneTrajectories, perceptual_loss
+from warpskill.optimizer.stage_a import initial_objective
+from warpskill.optimizer.stage_b import PhysicalRollout, make_physical_scene, physical_objective
+
+Objective = Callable[[list[int]], list[dict[str, torch.Tensor]]]
 
 
 def optimize(
@@ -108,175 +116,165 @@ def optimize_many(
     options = OptimizeOptions.build(options, **fields)
     if len(demos) == 0:
         raise ValueError("optimize_many needs at least one demonstration")
-    config, seed, init_only = options.config, options.seed, options.init_only
+    config = options.config
     backend = backend or Backend()
     device = resolve_device(options.device)
-    torch.manual_seed(seed)
+    options = replace(options, device=str(device))  # saved as it ran: None and "cpu" are one run
+    torch.manual_seed(options.seed)
+    knowns = _knowns_each(options, known_each, len(demos))
+    store = Checkpoint(checkpoint, _run_id(demos, options, backend, knowns))
+    evidence = [read_evidence(demo, known, config, device) for demo, known in zip(demos, knowns)]
+
+    # Stage (a): each object-depth hypothesis; the depth hypotheses of a demonstration are
+    # rivals, those clearly behind stop early (``config.rival_rungs``), the lowest loss wins.
+    candidates = stage_a_candidates(evidence, config.weights.typical_camera_height, device)
+    losses = minimise([c.parameters for c in candidates], _stage_a_objective(candidates, evidence, config, backend),
+                      iterations=config.init_iterations, learning_rate=config.init_learning_rate, config=config,
+                      progress=progress, label="initialisation", store=store, rivals=rival_groups(candidates),
+                      rungs=config.rival_rungs)
+    winners = stage_a_winners(candidates, losses, len(demos))
+    if options.init_only:
+        return [_stage_a_reconstruction(evidence[i], candidates[j], losses[j], config, options)
+                for i, j in enumerate(winners)]
+
+    # Stage (b): the physics from each start and contact signal variant; the simulation
+    # that matches the masks best wins.
+    hypotheses = physics_hypotheses(evidence, candidates, winners, device)
+    _start_physics(hypotheses, evidence, config, backend, device)
+    simulate = _physics_simulation(hypotheses, evidence, config, backend)
+    losses = minimise([h.scene for h in hypotheses], _stage_b_objective(hypotheses, evidence, simulate),
+                      iterations=config.iterations, learning_rate=config.learning_rate, config=config,
+                      progress=progress, label="physics", store=store)
+    with torch.no_grad():
+        results, rendered = simulate(list(range(len(hypotheses))))
+        for h, masks in zip(hypotheses, rendered):
+            h.fit = float(perceptual_loss(masks, evidence[h.demo].inputs.targets, config.weights))
+    return [_chosen_reconstruction(i, seen, hypotheses, results, losses, options) for i, seen in enumerate(evidence)]
+
+
+def _knowns_each(options: OptimizeOptions, known_each: Sequence[Mapping[str, float] | None] | None,
+                 count: int) -> list[dict[str, float]]:
+    """The known lengths [m] of each of ``count`` demonstrations: ``known_each`` (checked) or
+    ``options.known`` for all."""
     if known_each is None:
-        knowns = [options.known_lengths] * len(demos)
-    else:
-        if len(known_each) != len(demos):
-            raise ValueError(f"known_each: {len(known_each)} mappings for {len(demos)} demonstrations")
-        knowns = [check_known(k) for k in known_each]
-    run_id = fingerprint(demos, config, seed, backend)
+        return [options.known_lengths] * count
+    if len(known_each) != count:
+        raise ValueError(f"known_each: {len(known_each)} mappings for {count} demonstrations")
+    return [check_known(k) for k in known_each]
+
+
+def _run_id(demos: Sequence[Demonstration], options: OptimizeOptions, backend: Backend,
+            knowns: Sequence[dict[str, float]]) -> str:
+    """The checkpoint's identity of this run (:func:`~warpskill.optimizer.checkpoint.fingerprint`,
+    with the known lengths where any is given)."""
+    run_id = fingerprint(demos, options.config, options.seed, backend)
     if any(knowns):
         run_id = hashlib.sha256((run_id + repr(knowns)).encode()).hexdigest()
-    store = Checkpoint(checkpoint, run_id)
-    inputs = [working_inputs(demo, config, device) for demo in demos]
-    weights, sigma = config.weights, config.sigma
-    scene_weights = [weights.for_scene(known_length=bool(k), object_from_boxes=bool(given.targets.boxed[1]))
-                     for k, given in zip(knowns, inputs)]
-    # Frames after the contact signal's end where the object may still be held: stage (a)
-    # leaves them to the masks, stage (b) simulates both endings and the video decides.
-    held = [held_after_contact(given.masks.cpu().numpy(), given.contact_signal) for given in inputs]
-    uncertain = [torch.as_tensor(h, dtype=torch.float32, device=device) if h.any() else None for h in held]
+    return run_id
 
-    # Frames after the release where the object may stand on the static box (or behind it).
-    # (At the masks' own resolution: a few pixels tell the object on top from the object behind.)
-    # ... and those where it stands behind it, its lower part hidden by the box's top edge.
-    resting, behind = [], []
-    for demo, given in zip(demos, inputs):
-        rest = cut = np.zeros(demo.num_frames, dtype=bool)
-        if demo.num_static:
-            full = demo.mask_stack(*demo.image_size)
-            rest, cut = rests_on_static(full, given.contact_signal), cut_by_static(full, given.contact_signal)
-        resting.append(rest)
-        behind.append(torch.as_tensor(cut, dtype=torch.float32, device=device) if cut.any() else None)
 
-    # Stage (a): every demonstration from each object-depth hypothesis; the lower loss wins,
-    # except that a placement on the static box goes on to the physics beside the winner.
-    # The hand's tilt read off its foreshortening starts the hand where the scale is free
-    # (54 synthetic mask demonstrations: |scale - 1| 0.115 -> 0.07, 50/54 either way); with
-    # a known length it raised the object-centre error (2.9 -> 3.5 cm), so it is left out.
-    owners, candidates, supported, guesses = [], [], [], []
-    for i, (demo, given) in enumerate(zip(demos, inputs)):
-        for hypothesis in OBJECT_DEPTH_HYPOTHESES:
-            on_static = hypothesis == "on the static"
-            if on_static and not resting[i].any():
-                continue
-            guess = initial_guess(given.masks.cpu().numpy(), given.contact_signal, given.intrinsics, demo.num_static,
-                                  object_depth=hypothesis, resting=resting[i], hand_width=not given.hand_boxed,
-                                  hand_tilt=not knowns[i],
-                                  carried=given.contact_signal | held[i])
-            if any(owner == i and guess.same_as(made) for owner, made in zip(owners, guesses)):
-                continue  # placed alike by two hypotheses (the object's box bottom stays on one row): one fit
-            guesses.append(guess)
-            owners.append(i)
-            supported.append(torch.as_tensor(resting[i], dtype=torch.float32, device=device) if on_static else None)
-            candidates.append(InitialParameters(guess, knowns[i]).to(device))
+def _with_known(options: OptimizeOptions, known: dict[str, float]) -> OptimizeOptions:
+    """``options`` as saved with one demonstration's reconstruction: with its own known lengths."""
+    return replace(options, known=tuple(known.items()))
 
-    def stage_a(live: list[int]) -> list[dict[str, torch.Tensor]]:
-        scenes = [candidates[j].scene() for j in live]
-        rendered = render_many(scenes, [inputs[owners[j]].intrinsics for j in live], sigma, backend,
-                               [inputs[owners[j]].targets for j in live])
+
+def _stage_a_objective(candidates: Sequence[Candidate], evidence: Sequence[Evidence], config: OptimizeConfig,
+                       backend: Backend) -> Objective:
+    """Stage (a)'s loss terms of the live candidates, their frames rendered in shared launches."""
+
+    def objective(live: list[int]) -> list[dict[str, torch.Tensor]]:
+        scenes = [candidates[j].parameters.scene() for j in live]
+        seen = [evidence[candidates[j].demo] for j in live]
+        rendered = render_many(scenes, [e.inputs.intrinsics for e in seen], config.sigma, backend,
+                               [e.inputs.targets for e in seen])
         return [
-            initial_objective(scene, masks, inputs[owners[j]].targets, inputs[owners[j]].contact,
-                              demos[owners[j]].fps, scene_weights[owners[j]], uncertain[owners[j]],
-                              supported[j], behind[owners[j]])
-            for j, scene, masks in zip(live, scenes, rendered)
+            initial_objective(scene, masks, e.inputs.targets, e.inputs.contact, e.demo.fps, e.weights, e.uncertain,
+                              candidates[j].support, e.behind)
+            for j, scene, masks, e in zip(live, scenes, rendered, seen)
         ]
 
-    # The depth hypotheses of a demonstration are rivals: those clearly behind stop early
-    # (``config.rival_rungs``); the placement on the static box is no rival: it always goes
-    # on to the physics.
-    rivals = [owners[j] if supported[j] is None else None for j in range(len(candidates))]
-    losses = minimise(candidates, stage_a, iterations=config.init_iterations,
-                       learning_rate=config.init_learning_rate, config=config, progress=progress,
-                       label="initialisation", store=store, rivals=rivals, rungs=config.rival_rungs)
-    fits, stage_a_losses, placements = [], [], []
-    for i in range(len(demos)):
-        j = min((j for j in range(len(owners)) if owners[j] == i and supported[j] is None), key=lambda j: losses[j])
-        fits.append(candidates[j].scene().detached())
-        stage_a_losses.append(losses[j])
-        placements.append([(candidates[j].scene().detached(), supported[j]) for j in range(len(owners))
-                           if owners[j] == i and supported[j] is not None])
-    if init_only:
-        reconstructions = []
-        for i, (demo, given, fit, loss) in enumerate(zip(demos, inputs, fits, stage_a_losses)):
-            grasp = (2 * given.contact - 1) * weights.grasp_margin
-            distance = box_signed_distance(fit.hand_pos, fit.object_pos, fit.object_rot, fit.object_size)
-            reconstructions.append(_reconstruction(demo, fit, grasp, given.contact * (distance < 0), loss,
-                                                   replace(options, known=tuple(knowns[i].items()))))
-        return reconstructions
+    return objective
 
-    # Stage (b): the physics, once per contact hypothesis (the signal as given and, where the
-    # object may still be held after it ends, the signal extended to the video's end) and per
-    # placement (stage (a)'s winner and, where the object may rest on the static box, that
-    # placement); the one whose simulation matches the masks best wins.
-    physics_owners, contacts, signals, starts, on_static = [], [], [], [], []
-    for i, given in enumerate(inputs):
-        variants = [given.contact_signal] + ([given.contact_signal | held[i]] if held[i].any() else [])
-        for start, support in [(fits[i], None)] + placements[i]:
-            for signal in variants:
-                physics_owners.append(i)
-                signals.append(signal)
-                starts.append(start)
-                on_static.append(support)
-                contacts.append(torch.as_tensor(signal, dtype=torch.float32, device=device))
-    def unseen_before_contact(i: int, signal: np.ndarray) -> bool:
-        onset = np.flatnonzero(signal)
-        return len(onset) > 0 and not bool(inputs[i].object_visible[: onset[0]].any())
 
-    with torch.no_grad():  # how well stage (a) matched each frame's hand: the spline's start weighs by it
-        profiles = render_many(starts, [inputs[i].intrinsics for i in physics_owners], sigma, backend,
-                               [inputs[i].targets for i in physics_owners])
-        hand_losses = [masks_loss(profile, inputs[i].targets)[:, 0].cpu().double().numpy()
-                       for i, profile in zip(physics_owners, profiles)]
-    scenes = [make_physical_scene(start, signal, demos[physics_owners[b]].fps, config, knowns[physics_owners[b]],
-                                  unseen_before_contact(physics_owners[b], signal), hand_losses[b]).to(device)
-              for b, (start, signal) in enumerate(zip(starts, signals))]
+def _stage_a_reconstruction(seen: Evidence, winner: Candidate, loss: float, config: OptimizeConfig,
+                            options: OptimizeOptions) -> Reconstruction:
+    """The reconstruction of stage (a) alone (the paper's "initialisation only"): the winner's
+    per-frame scene, the grasp signal at the contact's margin, grasped where the tip is inside."""
+    fit = winner.parameters.scene().detached()
+    given = seen.inputs
+    grasp = (2 * given.contact - 1) * config.weights.grasp_margin
+    distance = box_signed_distance(fit.hand_pos, fit.object_pos, fit.object_rot, fit.object_size)
+    grasped = given.contact * (distance < 0)
+    return _reconstruction(seen.demo, fit, grasp, grasped, loss, _with_known(options, seen.known))
 
-    def simulate_scenes(live: list[int]) -> list[PhysicalRollout]:
-        rollouts = simulate_many([scenes[b].simulation_inputs() for b in live],
-                                 [scenes[b].simulation_options() for b in live], backend.simulate)
-        return [scenes[b].assemble(rollout) for b, rollout in zip(live, rollouts)]
 
-    def stage_b(live: list[int]) -> list[dict[str, torch.Tensor]]:
-        results = simulate_scenes(live)
-        rendered = render_many([r.scene for r in results], [inputs[physics_owners[b]].intrinsics for b in live],
-                               sigma, backend, [inputs[physics_owners[b]].targets for b in live])
-        return [
-            physical_objective(result, masks, inputs[physics_owners[b]].targets, contacts[b],
-                               inputs[physics_owners[b]].object_visible, scene_weights[physics_owners[b]],
-                               on_static[b], behind[physics_owners[b]])
-            for b, result, masks in zip(live, results, rendered)
-        ]
-
-    losses = minimise(scenes, stage_b, iterations=config.iterations, learning_rate=config.learning_rate,
-                       config=config, progress=progress, label="physics", store=store)
+def _start_physics(hypotheses: Sequence[PhysicsHypothesis], evidence: Sequence[Evidence], config: OptimizeConfig,
+                   backend: Backend, device: torch.device) -> None:
+    """Set each hypothesis's physics parameters, its hand spline weighing the frames by how
+    well its start matched their hand masks (stage (a)'s hand dIoU per frame)."""
+    seen = [evidence[h.demo] for h in hypotheses]
     with torch.no_grad():
-        everything = list(range(len(scenes)))
-        results = simulate_scenes(everything)
-        rendered = render_many([r.scene for r in results], [inputs[physics_owners[b]].intrinsics for b in everything],
-                               sigma, backend, [inputs[physics_owners[b]].targets for b in everything])
-        fit = [float(perceptual_loss(masks, inputs[physics_owners[b]].targets, weights))
-               for b, masks in zip(everything, rendered)]
-    reconstructions = []
-    for i, demo in enumerate(demos):
-        own = [b for b in everything if physics_owners[b] == i]
-        # Where the masks show the object's bottom inside the static's box after the release,
-        # a simulation that ends with the object behind the box contradicts them: the
-        # renderer draws the object whole, but the box would hide it there.
-        contradicted = [bool(resting[i].any()) and ends_behind_static(results[b].scene) for b in own]
-        b = own[best_simulation([fit[b] for b in own], contradicted)]
-        result = results[b]
-        reconstructions.append(_reconstruction(demo, result.scene, result.rollout.grasp, result.rollout.grasped,
-                                               losses[b], replace(options, known=tuple(knowns[i].items()))))
-    return reconstructions
+        profiles = render_many([h.start for h in hypotheses], [e.inputs.intrinsics for e in seen], config.sigma,
+                               backend, [e.inputs.targets for e in seen])
+        hand_losses = [masks_loss(profile, e.inputs.targets)[:, 0].cpu().double().numpy()
+                       for e, profile in zip(seen, profiles)]
+    for h, e, hand_loss in zip(hypotheses, seen, hand_losses):
+        h.scene = make_physical_scene(h.start, h.signal, e.demo.fps, config, e.known,
+                                      unseen_before_contact(e, h.signal), hand_loss).to(device)
 
 
-def best_simulation(fits: Sequence[float], contradicted: Sequence[bool]) -> int:
-    """Index of the simulation with the lowest perceptual loss among those the masks do not
-    contradict (among all when every one is)."""
-    pool = [k for k in range(len(fits)) if not contradicted[k]] or range(len(fits))
-    return min(pool, key=lambda k: fits[k])
+def _physics_simulation(
+    hypotheses: Sequence[PhysicsHypothesis], evidence: Sequence[Evidence], config: OptimizeConfig, backend: Backend,
+) -> Callable[[list[int]], tuple[list[PhysicalRollout], list[torch.Tensor]]]:
+    """``simulate(live)``: the live hypotheses' rollouts in one engine call and their frames
+    rendered in shared launches."""
+
+    def simulate(live: list[int]) -> tuple[list[PhysicalRollout], list[torch.Tensor]]:
+        scenes = [hypotheses[b].scene for b in live]
+        rollouts = simulate_many([s.simulation_inputs() for s in scenes], [s.simulation_options() for s in scenes],
+                                 backend.simulate)
+        results = [scene.assemble(rollout) for scene, rollout in zip(scenes, rollouts)]
+        seen = [evidence[hypotheses[b].demo] for b in live]
+        rendered = render_many([r.scene for r in results], [e.inputs.intrinsics for e in seen], config.sigma,
+                               backend, [e.inputs.targets for e in seen])
+        return results, rendered
+
+    return simulate
+
+
+def _stage_b_objective(hypotheses: Sequence[PhysicsHypothesis], evidence: Sequence[Evidence],
+                       simulate: Callable[[list[int]], tuple[list[PhysicalRollout], list[torch.Tensor]]]) -> Objective:
+    """Stage (b)'s loss terms of the live hypotheses."""
+
+    def objective(live: list[int]) -> list[dict[str, torch.Tensor]]:
+        results, rendered = simulate(live)
+        terms = []
+        for b, result, masks in zip(live, results, rendered):
+            h, e = hypotheses[b], evidence[hypotheses[b].demo]
+            terms.append(physical_objective(result, masks, e.inputs.targets, h.contact, e.inputs.object_visible,
+                                            e.weights, h.support, e.behind))
+        return terms
+
+    return objective
+
+
+def _chosen_reconstruction(demo: int, seen: Evidence, hypotheses: Sequence[PhysicsHypothesis],
+                           results: Sequence[PhysicalRollout], losses: Sequence[float],
+                           options: OptimizeOptions) -> Reconstruction:
+    """The reconstruction of demonstration ``demo`` from its chosen simulation
+    (:func:`~warpskill.optimizer.hypotheses.chosen_simulation`) among the final ``results``."""
+    own = [b for b, h in enumerate(hypotheses) if h.demo == demo]
+    b = own[chosen_simulation(seen, [hypotheses[b] for b in own], [results[b] for b in own])]
+    result = results[b]
+    return _reconstruction(seen.demo, result.scene, result.rollout.grasp, result.rollout.grasped, losses[b],
+                           _with_known(options, seen.known))
 
 
 def _reconstruction(
     demo: Demonstration, scene: SceneTrajectories, grasp: torch.Tensor, grasped: torch.Tensor, loss: float,
     options: OptimizeOptions,
 ) -> Reconstruction:
-    """The FORMATS.md reconstruction of a per-frame scene, at the demonstration's full resolution."""
+    """The docs/formats.md reconstruction of a per-frame scene, at the demonstration's full resolution."""
     n = lambda x: x.detach().cpu().double().numpy()  # noqa: E731
     N = demo.num_frames
     return Reconstruction(

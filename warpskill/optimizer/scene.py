@@ -13,6 +13,10 @@ from warpskill.engine.rotations import yaw_rotation
 from warpskill.optimizer.losses import MaskProfile, MaskTargets, masks_loss
 from warpskill.optimizer.weights import LossWeights
 
+MIN_OBJECT_SIZE = 0.01  # [m] the object's smallest size, each axis: a softplus floor that keeps it a solid
+MIN_STATIC_SIZE = 0.02  # [m] a static cuboid's smallest size, each axis
+MIN_CAMERA_HEIGHT = 0.05  # [m] the camera's lowest height above the ground: it films the table from above
+
 
 @dataclass
 class SceneTrajectories:
@@ -74,6 +78,33 @@ def perceptual_loss(rendered: torch.Tensor | MaskProfile, targets: MaskTargets, 
     return (per_mask * channel_weights).sum(1).mean()
 
 
+class SceneShape(torch.nn.Module):
+    """The parameters both stages share: the object's size, the static cuboids' ground
+    position, yaw and size, and the camera's height and elevation.
+
+    Sizes and the height are kept unconstrained (:func:`positive_inverse`) above their floors
+    (:data:`MIN_OBJECT_SIZE`, :data:`MIN_STATIC_SIZE`, :data:`MIN_CAMERA_HEIGHT`). A stage
+    registers them with :meth:`register_shape` where they belong among its own parameters
+    (their order and names are those of its checkpoints).
+    """
+
+    def register_shape(self, start: SceneTrajectories) -> None:
+        """Register the shared parameters, started at ``start``'s values (on the CPU)."""
+        P = torch.nn.Parameter
+        self.object_size_raw = P(positive_inverse(start.object_size, MIN_OBJECT_SIZE))
+        self.static_xy = P(start.static_pos[:, :2].clone())
+        self.static_yaw = P(torch.atan2(start.static_rot[:, 1, 0], start.static_rot[:, 0, 0]))
+        self.static_size_raw = P(positive_inverse(start.static_size, MIN_STATIC_SIZE))
+        self.camera_height_raw = P(positive_inverse(start.camera_height, MIN_CAMERA_HEIGHT))
+        self.camera_elevation = P(start.camera_elevation.clone())
+
+    def free_sizes(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The object's size (3,), the static sizes (K, 3) and the camera height (0-d) [m], as
+        the parameters give them (before a stage's scale or known lengths)."""
+        return (positive(self.object_size_raw, MIN_OBJECT_SIZE), positive(self.static_size_raw, MIN_STATIC_SIZE),
+                positive(self.camera_height_raw, MIN_CAMERA_HEIGHT))
+
+
 def render_scene(scene: SceneTrajectories, intrinsics: Intrinsics, sigma: float) -> torch.Tensor:
     """Soft visible masks (N, 2 + K, h, w) of a per-frame scene: hand, object, statics."""
     cuboid_pos, cuboid_rot, cuboid_size = scene_cuboids(scene)
@@ -105,9 +136,9 @@ def footprint_prior(scene: SceneTrajectories, weights: LossWeights) -> torch.Ten
 
     Seen from the front, an object's depth shows only through its top face; a box around
     it shows none of it, and a deeper object farther away then draws the same box as the
-    true one (with a known height, 90 box demonstrations came out a third too deep, median,
-    and their scenes too far). A footprint about as deep as wide decides where the view leaves
-    the depth open; :meth:`~warpskill.optimizer.weights.LossWeights.for_scene` says where.
+    true one (with a known height, such objects come out too deep and their scenes too far).
+    A footprint about as deep as wide decides where the view leaves the depth open;
+    :meth:`~warpskill.optimizer.weights.LossWeights.for_scene` says where.
     """
     return weights.object_footprint * torch.log(scene.object_size[1] / scene.object_size[0]).square()
 

@@ -24,15 +24,13 @@ from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.known import pin_sizes
 from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.scene import (
+    SceneShape,
     SceneTrajectories,
     perceptual_loss,
-    positive,
-    positive_inverse,
     scene_priors,
     static_poses,
 )
 from warpskill.optimizer.spline import natural_cubic_basis
-from warpskill.optimizer.stage_a import MIN_OBJECT_SIZE, MIN_STATIC_SIZE
 from warpskill.optimizer.weights import LossWeights
 
 CONTACT_FIT_WEIGHT = 50.0  # contact frames' weight in the hand spline's least-squares fit
@@ -59,7 +57,7 @@ class PhysicalRollout:
     hand_speed: torch.Tensor
 
 
-class PhysicalScene(torch.nn.Module):
+class PhysicalScene(SceneShape):
     """Stage (b) parameters, initialised from stage (a)'s per-frame fit.
 
     Args:
@@ -133,12 +131,7 @@ class PhysicalScene(torch.nn.Module):
         slack = float("inf") if unseen_before_contact else _drift_before_contact(fit, contact)
         self.object_pos0 = P(fit.object_pos[0] + (gap - shift).clamp(max=slack) * normal)
         self.object_rot6 = P(rotation_to_6d(fit.object_rot[0]))
-        self.object_size_raw = P(positive_inverse(fit.object_size, MIN_OBJECT_SIZE))
-        self.static_xy = P(fit.static_pos[:, :2].clone())
-        self.static_yaw = P(torch.atan2(fit.static_rot[:, 1, 0], fit.static_rot[:, 0, 0]))
-        self.static_size_raw = P(positive_inverse(fit.static_size, MIN_STATIC_SIZE))
-        self.camera_height_raw = P(positive_inverse(fit.camera_height, 0.05))
-        self.camera_elevation = P(fit.camera_elevation.clone())
+        self.register_shape(fit)
 
     def _fit_control(
         self, fit: SceneTrajectories, contact: np.ndarray, frame_weight: np.ndarray, grasp_target: torch.Tensor,
@@ -202,16 +195,14 @@ class PhysicalScene(torch.nn.Module):
 
     def cuboids(self) -> tuple[torch.Tensor, ...]:
         """Object size (3,), static centres (K, 3), rotations (K, 3, 3) and sizes (K, 3)."""
-        object_size, static_size, _ = pin_sizes(
-            self.known, positive(self.object_size_raw, MIN_OBJECT_SIZE), positive(self.static_size_raw, MIN_STATIC_SIZE),
-            self.camera_height(),
-        )
+        object_size, static_size, _ = self.free_sizes()
+        object_size, static_size, _ = pin_sizes(self.known, object_size, static_size, self.camera_height())
         static_pos, static_rot = static_poses(self.static_xy, self.static_yaw, static_size)
         return object_size, static_pos, static_rot, static_size
 
     def camera_height(self) -> torch.Tensor:
         """The camera's height [m] (the known one, when given)."""
-        height = positive(self.camera_height_raw, 0.05)
+        height = self.free_sizes()[2]
         return height * 0 + self.known["camera_height"] if "camera_height" in self.known else height
 
     def simulation_inputs(self) -> SceneInputs:

@@ -32,19 +32,22 @@ class LossWeights:
     def for_scene(self, *, known_length: bool, object_from_boxes: bool) -> "LossWeights":
         """These weights with each prior on only where it has something to decide.
 
-        The camera-height prior sets the scale, so it is off where a known length fixes it,
-        unless the object is drawn from boxes: a box leaves the object's depth free, and
-        with it the scale (a farther, deeper and wider object draws the same box), which
-        the prior then decides (90 synthetic box demonstrations with a known object height:
-        object centre 4.3 cm off with it, median, 5.4 cm without; 87/90 and 89/90 succeed).
-        The footprint prior is on only for an object drawn from boxes with a known length:
-        there the box fixes neither the object's depth nor, through it, its distance (90
-        synthetic box demonstrations with a known object height, before the camera-height
-        prior was kept on there: 89/90 and object centre 5.4 cm off with it, 86/90 and
-        6.4 cm without). A true silhouette shows the depth
-        through the top face (27 mask demonstrations, known height: 24/27 and 3.2 cm with
-        it, 27/27 and 2.4 cm without), and without a known length the prior lost a
-        development video (8675) and one of 90 box demonstrations.
+        Camera height (``camera_height``, around ``typical_camera_height`` [m]): the masks
+        leave the scene's scale open, and this prior decides it. It is off where a known
+        length fixes the scale, unless the object is drawn from boxes: a box shows nothing
+        of the object's depth, so with its height fixed a deeper, wider object farther away
+        draws the same box, and the scale is open again.
+
+        Object footprint (``object_footprint``, depth about equal to width): on only for an
+        object drawn from boxes with a known length, where the box fixes neither the
+        object's depth nor, through it, its distance. A true silhouette shows the depth
+        through the top face, and without a known length the camera-height prior already
+        holds the scale; there the footprint prior only pulls real objects away from their
+        shape (docs/results-history.md has the measurements behind both rules).
+
+        Args:
+            known_length: a length of the scene is known (``known=``).
+            object_from_boxes: the object's masks are drawn from boxes.
         """
         return replace(self, camera_height=0.0 if known_length and not object_from_boxes else self.camera_height,
                        object_footprint=self.object_footprint if known_length and object_from_boxes else 0.0)

@@ -1,0 +1,272 @@
+"""Stage (a)'s first scene, read off the masks' geometry before any optimisation.
+
+The hand's apparent width (its radius is known; :func:`~warpskill.optimizer.measurements.hand_depth`)
+gives the scene's depth; with the prior elevation, the object's box bottom at that depth
+gives the camera height. Cuboids stand upright on the ground below their mask's bottom
+edge; the hand's tip is at the hand pixel nearest the object, at the object's depth.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from warpskill.contract.camera import Intrinsics
+from warpskill.contract.geometry import frame_from_axis
+from warpskill.engine.projection import camera_rotation
+from warpskill.optimizer.measurements import TYPICAL_HAND_TILT, MaskGeometry, fill_missing, hand_depth
+from warpskill.optimizer.measurements import hand_tilt as measured_hand_tilt
+from warpskill.optimizer.scene import SceneTrajectories, static_poses
+from warpskill.optimizer.weights import LossWeights
+
+OBJECT_DEPTH_HYPOTHESES = ("resting depth", "on the ground", "on the static")
+"""Where the object is after it was first seen (see :func:`initial_guess`); the last applies
+only to frames that :func:`warpskill.optimizer.inputs.rests_on_static` finds."""
+
+INITIAL_CAMERA_ELEVATION = 0.6  # [rad] the camera's look below the horizon, a person's view of a table
+CAMERA_HEIGHT_RANGE = (0.15, 1.5)  # [m] the camera heights a first guess may take: a table's scale
+MAX_RAY_DEPTH = 3.0  # [m] camera depth at which a ray that meets the ground farther away (or never) stops
+MIN_RAY_DESCENT = 1e-3  # a ray's downward slope (z per unit depth) below which it counts as never reaching a plane
+FRONT_FACE_SHARE = 0.6  # share of an upright cuboid's box height that is its front face (above it: its top)
+CUBOID_HEIGHT_RANGE = (0.03, 0.4)  # [m] the heights a first guess may give a cuboid
+CUBOID_SIZE_RANGE = (0.03, 0.5)  # [m] the sizes a first guess may give a cuboid, each axis
+APPROACH_GROWTH = 1.25  # a carried cuboid's box this much wider than at first: it has come closer
+
+
+@dataclass
+class GuessCamera:
+    """The first guess's camera: intrinsics ``K`` (3, 3) at the masks' resolution, rotation
+    ``R_wc`` (3, 3) camera to world, centre ``position`` (3,) [m] above the world origin,
+    and the image width ``width`` [px]."""
+
+    K: np.ndarray
+    R_wc: np.ndarray
+    position: np.ndarray
+    width: int
+
+    def rays(self, pixels: np.ndarray) -> np.ndarray:
+        """World directions (M, 3) of the rays through pixels (M, 2) [px], of unit camera depth."""
+        K = self.K
+        d = np.stack([(pixels[:, 0] - K[0, 2]) / K[0, 0], (pixels[:, 1] - K[1, 2]) / K[1, 1], np.ones(len(pixels))], -1)
+        return d @ self.R_wc.T
+
+    def ray(self, pixel: np.ndarray) -> np.ndarray:
+        """World direction (3,) of the ray through one pixel (2,) [px], of unit camera depth."""
+        return self.rays(pixel[None])[0]
+
+    def plane_point(self, pixel: np.ndarray, height: float) -> tuple[np.ndarray, float]:
+        """Where the ray through ``pixel`` (2,) [px] meets the horizontal plane at ``height`` [m]
+        (at most :data:`MAX_RAY_DEPTH` away; at unit depth when it never descends to it): the
+        world point (3,) [m] and its camera depth [m]."""
+        ray = self.ray(pixel)
+        t = (height - self.position[2]) / ray[2] if ray[2] < -MIN_RAY_DESCENT else 1.0
+        t = min(t, MAX_RAY_DEPTH)
+        return self.position + t * ray, t
+
+
+def initial_guess(
+    targets: np.ndarray,
+    contact: np.ndarray,
+    intrinsics: Intrinsics,
+    num_static: int,
+    *,
+    object_depth: str = "resting depth",
+    resting: np.ndarray | None = None,
+    hand_width: bool = True,
+    carried: np.ndarray | None = None,
+    hand_tilt: bool = True,
+    typical_camera_height: float = LossWeights.typical_camera_height,
+) -> SceneTrajectories:
+    """A rough scene read off the masks' geometry, before any optimisation.
+
+    Where the object is after it was first seen is ambiguous from one frame's mask (the
+    paper's Fig. 1: on top of a box, or behind it on the ground), so ``object_depth``
+    names the hypothesis: it keeps its ``"resting depth"``, or stands ``"on the ground"``
+    below its mask's bottom edge in every frame, or, in the ``resting`` frames after the
+    release, stands ``"on the static"`` box's top, the box reaching back (or forward) under it.
+
+    Args:
+        targets: (N, 2 + K, h, w) masks at the working resolution.
+        contact: (N,) bool.
+        intrinsics: working-resolution intrinsics.
+        num_static: K.
+        object_depth: one of :data:`OBJECT_DEPTH_HYPOTHESES`.
+        resting: (N,) bool, the frames where the object may rest on the first static box
+            (needed by ``"on the static"``).
+        hand_width: whether the hand mask's width measures its depth (not so for masks
+            drawn from boxes); without it the camera starts at ``typical_camera_height``.
+        carried: (N,) bool, frames in which the object may be in the hand (default: ``contact``).
+        hand_tilt: read the hand's lean towards the camera off its foreshortening (with
+            ``hand_width``; :func:`~warpskill.optimizer.measurements.hand_tilt`), else start
+            it at a typical forearm's.
+        typical_camera_height: [m] the camera height where the masks give none
+            (:attr:`LossWeights.typical_camera_height`).
+
+    Raises:
+        ValueError: an unknown ``object_depth``, or ``"on the static"`` without a static box
+            or resting frames.
+    """
+    if object_depth not in OBJECT_DEPTH_HYPOTHESES:
+        raise ValueError(f"object_depth must be one of {OBJECT_DEPTH_HYPOTHESES}, not {object_depth!r}")
+    on_static = object_depth == "on the static"
+    carried = np.asarray(contact if carried is None else carried, dtype=bool)
+    if on_static and (num_static == 0 or resting is None or not np.any(resting)):
+        raise ValueError("object_depth 'on the static' needs a static box and frames where the object rests on it")
+    K = intrinsics.K
+    R_wc = camera_rotation(torch.tensor(INITIAL_CAMERA_ELEVATION, dtype=torch.float64)).numpy()
+    hand_geom = MaskGeometry(targets[:, 0])
+    object_geom = MaskGeometry(targets[:, 1])
+    object_centroid = fill_missing(object_geom.centroid, object_geom.visible)
+    depth = hand_depth(hand_geom, object_centroid, K) if hand_width else None
+    height = typical_camera_height if depth is None else _camera_height(depth, object_geom, carried, K, R_wc)
+    camera = GuessCamera(K, R_wc, np.array([0.0, 0.0, height]), targets.shape[-1])
+
+    object_pos, object_size, _ = _cuboid_from_masks(object_geom, camera, carried, object_depth == "on the ground")
+    static_pos, static_size = [], []
+    for j in range(num_static):
+        pos, size, visible = _cuboid_from_masks(MaskGeometry(targets[:, 2 + j]), camera, carried, True)
+        static_pos.append(pos[np.flatnonzero(visible)[0]])
+        static_size.append(size)
+    if on_static:
+        object_pos = _placed_on_static(object_pos, object_size, object_geom, np.asarray(contact, bool), resting,
+                                       static_pos[0], static_size[0], camera)
+    toward = measured_hand_tilt(hand_geom, K) if hand_width and hand_tilt else None
+    hand_pos, hand_rot = _hand_poses(hand_geom, object_centroid, object_pos, camera,
+                                     TYPICAL_HAND_TILT if toward is None else toward)
+    return _scene(hand_pos, hand_rot, object_pos, object_size, static_pos, static_size, height)
+
+
+def _camera_height(depth: float, object_geom: MaskGeometry, carried: np.ndarray, K: np.ndarray,
+                   R_wc: np.ndarray) -> float:
+    """The camera height [m] that puts the object's box bottom on the ground at camera depth
+    ``depth`` [m], within :data:`CAMERA_HEIGHT_RANGE`.
+
+    The bottom row is the median over the frames before the object is first ``carried``
+    (a lifted object's box bottom is no ground row: it would put the camera too low, the
+    scene too small), or over all frames when it is not seen before.
+    """
+    onset = np.flatnonzero(carried)
+    standing = object_geom.box[: onset[0] if len(onset) else len(carried), 3]
+    bottom_row = np.nanmedian(standing if np.isfinite(standing).any() else object_geom.box[:, 3])
+    ray = np.array([0.0, (bottom_row - K[1, 2]) / K[1, 1], 1.0])
+    return float(np.clip(depth * (ray @ R_wc.T) @ np.array([0.0, 0.0, -1.0]), *CAMERA_HEIGHT_RANGE))
+
+
+def _cuboid_from_masks(
+    geom: MaskGeometry, camera: GuessCamera, carried: np.ndarray, on_ground: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-frame centres (N, 3) [m], a size (3,) [m] and visibility (N,) of an upright cuboid
+    seen in ``geom``.
+
+    Where it is first seen the cuboid stands on the ground below its mask's bottom edge;
+    later it stands there again (``on_ground``) or keeps that camera depth. While it is
+    ``carried`` (N,), a box much wider than where first seen whole across says it has come
+    closer (size constancy; its bottom edge may be the image's border): its depth shrinks
+    in proportion, along the ray through the box's centre.
+    """
+    K, N = camera.K, len(geom.visible)
+    visible = np.flatnonzero(geom.visible)
+    u0, v0, u1, v1 = geom.box[visible[0]]
+    _, rest_depth = camera.plane_point(np.array([0.5 * (u0 + u1), v1]), 0.0)
+    # Its width where first seen whole across (a box cut by a side border is no measure).
+    across = visible[(geom.box[visible, 0] > 0) & (geom.box[visible, 2] < camera.width)]
+    rest_width = geom.box[across[0], 2] - geom.box[across[0], 0] if len(across) else np.inf
+    pos = np.zeros((N, 3))
+    sizes = []
+    for k in visible:
+        u0, v0, u1, v1 = geom.box[k]
+        bottom_pixel = np.array([0.5 * (u0 + u1), v1])
+        bottom, depth = camera.plane_point(bottom_pixel, 0.0)
+        if not on_ground:
+            depth = rest_depth
+            bottom = camera.position + depth * camera.ray(bottom_pixel)
+        width = (u1 - u0) * depth / K[0, 0]
+        height = np.clip((v1 - v0) * depth / K[1, 1] * FRONT_FACE_SHARE, *CUBOID_HEIGHT_RANGE)
+        if carried[k] and u0 > 0 and u1 < camera.width and u1 - u0 > APPROACH_GROWTH * rest_width:
+            depth = rest_depth * rest_width / (u1 - u0)
+            pos[k] = camera.position + depth * camera.ray(np.array([0.5 * (u0 + u1), 0.5 * (v0 + v1)]))
+            continue
+        sizes.append([width, width, height])
+        pos[k] = bottom + np.array([0.0, 0.5 * width, 0.5 * height])
+    size = np.clip(np.median(np.array(sizes), 0), *CUBOID_SIZE_RANGE)
+    return fill_missing(pos, geom.visible), size, np.asarray(geom.visible)
+
+
+def _placed_on_static(
+    object_pos: np.ndarray, object_size: np.ndarray, geom: MaskGeometry, contact: np.ndarray, resting: np.ndarray,
+    static_pos: np.ndarray, static_size: np.ndarray, camera: GuessCamera,
+) -> np.ndarray:
+    """Object centres (N, 3) [m] that stand on the static box's top in the ``resting`` frames,
+    below the mask's bottom edge, and are carried there during the contact (their camera
+    depth moving from where the object started to where it rests); the static box
+    (``static_pos``, ``static_size``, changed in place) reaches under the object."""
+    offset = np.array([0.0, 0.5 * object_size[1], 0.5 * object_size[2]])
+
+    def bottom_pixel(k: int) -> np.ndarray:
+        u0, _, u1, v1 = geom.box[k]
+        return np.array([0.5 * (u0 + u1), v1])
+
+    pos = object_pos.copy()
+    for k in np.flatnonzero(resting & geom.visible):
+        pos[k] = camera.plane_point(bottom_pixel(k), static_size[2])[0] + offset
+    rest = pos[resting & geom.visible].mean(0) if (resting & geom.visible).any() else pos[resting].mean(0)
+    pos[resting & ~geom.visible] = rest
+    held = np.flatnonzero(contact)
+    if len(held) > 1:
+        depth = lambda p: float((p - camera.position) @ camera.R_wc[:, 2])  # noqa: E731
+        start, end = depth(pos[held[0]] - offset), depth(rest - offset)
+        for k in held[geom.visible[held]]:
+            share = (k - held[0]) / (held[-1] + 1 - held[0])
+            pos[k] = camera.position + ((1 - share) * start + share * end) * camera.ray(bottom_pixel(k)) + offset
+    lo = np.minimum(static_pos[:2] - 0.5 * static_size[:2], rest[:2] - 0.5 * object_size[:2])
+    hi = np.maximum(static_pos[:2] + 0.5 * static_size[:2], rest[:2] + 0.5 * object_size[:2])
+    static_pos[:2], static_size[:2] = 0.5 * (lo + hi), hi - lo
+    return pos
+
+
+def _hand_poses(
+    geom: MaskGeometry, object_centroid: np.ndarray, object_pos: np.ndarray, camera: GuessCamera, toward: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Hand tip positions (N, 3) [m] and rotations (N, 3, 3): the tip at the hand pixel
+    nearest the object's centroid (N, 2) [px], at the object's camera depth, the axis pointing
+    from there towards the rest of the hand mask and, by the lean ``toward`` (the sine of its
+    angle out of the image plane), towards the camera."""
+    N = len(geom.visible)
+    hand_pos = np.zeros((N, 3))
+    hand_axis = np.zeros((N, 3))
+    for k in np.flatnonzero(geom.visible):
+        pixels = geom.pixels(k)
+        tip = pixels[np.argmin(((pixels - object_centroid[k]) ** 2).sum(1))]
+        tip_depth = ((object_pos[k] - camera.position) @ camera.R_wc)[2]
+        hand_pos[k] = camera.position + tip_depth * camera.ray(tip)
+        arm = geom.centroid[k] - tip
+        arm = arm / np.linalg.norm(arm) if np.linalg.norm(arm) > 1e-6 else np.array([0.0, 1.0])
+        hand_axis[k] = camera.R_wc @ np.array([*(np.sqrt(1.0 - toward**2) * arm), -toward])
+    return fill_missing(hand_pos, geom.visible), frame_from_axis(fill_missing(hand_axis, geom.visible))
+
+
+def _scene(
+    hand_pos: np.ndarray, hand_rot: np.ndarray, object_pos: np.ndarray, object_size: np.ndarray,
+    static_pos: list[np.ndarray], static_size: list[np.ndarray], camera_height: float,
+) -> SceneTrajectories:
+    """The guessed scene in float32 tensors: the object upright, the static boxes on the
+    ground with no yaw, the camera at ``camera_height`` [m] and :data:`INITIAL_CAMERA_ELEVATION`."""
+    f = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
+    N, num_static = len(hand_pos), len(static_pos)
+    static_size_t = f(np.reshape(static_size, (num_static, 3)))
+    static_xy = f(np.reshape(static_pos, (num_static, 3))[:, :2])
+    s_pos, s_rot = static_poses(static_xy, torch.zeros(num_static), static_size_t)
+    return SceneTrajectories(
+        hand_pos=f(hand_pos),
+        hand_rot=f(hand_rot),
+        object_pos=f(object_pos),
+        object_rot=torch.eye(3).expand(N, 3, 3).clone(),
+        object_size=f(object_size),
+        static_pos=s_pos,
+        static_rot=s_rot,
+        static_size=static_size_t,
+        camera_height=torch.tensor(camera_height),
+        camera_elevation=torch.tensor(INITIAL_CAMERA_ELEVATION),
+    )

@@ -1,0 +1,214 @@
+"""The hypotheses the pipeline tries, one record each, and the rules that make and choose them.
+
+One view leaves some things open (the paper's Fig. 1): where the object is after it was
+first seen (:data:`~warpskill.optimizer.guess.OBJECT_DEPTH_HYPOTHESES`), whether the hand
+still holds it after the contact signal ends, and whether it was put on the static box or
+behind it. :func:`warpskill.optimize` fits each hypothesis and keeps the one the masks
+support best:
+
+1. :func:`read_evidence`: per demonstration, the masks and what they say of those questions;
+2. :func:`stage_a_candidates`: one :class:`Candidate` per object-depth hypothesis;
+3. :func:`stage_a_winners`: per demonstration, the rival with the lowest stage (a) loss;
+4. :func:`physics_hypotheses`: one :class:`PhysicsHypothesis` per start (the winner, and
+   each placement on the static box) and contact signal variant;
+5. :func:`chosen_simulation`: the simulation that matches the masks best.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+import torch
+
+from warpskill.contract.demonstration import Demonstration
+from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.guess import OBJECT_DEPTH_HYPOTHESES, initial_guess
+from warpskill.optimizer.inputs import (
+    WorkingInputs,
+    cut_by_static,
+    held_after_contact,
+    rests_on_static,
+    working_inputs,
+)
+from warpskill.optimizer.scene import SceneTrajectories, ends_behind_static
+from warpskill.optimizer.stage_a import InitialParameters
+from warpskill.optimizer.stage_b import PhysicalRollout, PhysicalScene
+from warpskill.optimizer.weights import LossWeights
+
+
+def _on(device: torch.device, frames: np.ndarray) -> torch.Tensor | None:
+    """(N,) bool frames as floats on ``device``; None when there are none."""
+    return torch.as_tensor(frames, dtype=torch.float32, device=device) if frames.any() else None
+
+
+@dataclass
+class Evidence:
+    """One demonstration as both stages fit it.
+
+    Attributes:
+        demo: the demonstration.
+        inputs: its masks and contact at the working resolution.
+        known: lengths known in advance [m] (:data:`~warpskill.optimizer.known.KNOWN_LENGTHS`).
+        weights: the loss weights for this scene (:meth:`LossWeights.for_scene`).
+        held: (N,) bool, frames after the contact signal's end where the object may still be
+            held (:func:`~warpskill.optimizer.inputs.held_after_contact`): stage (a) leaves
+            them to the masks, stage (b) simulates both endings and the video decides.
+        uncertain: ``held`` as (N,) floats on the device; None when there are none.
+        resting: (N,) bool, frames after the release where the object may stand on the
+            static box (:func:`~warpskill.optimizer.inputs.rests_on_static`, read at the
+            masks' own resolution: a few pixels tell the object on top from the object behind).
+        behind: (N,) 1 in frames where the static box hides the object's lower part
+            (:func:`~warpskill.optimizer.inputs.cut_by_static`); None when there are none.
+    """
+
+    demo: Demonstration
+    inputs: WorkingInputs
+    known: dict[str, float]
+    weights: LossWeights
+    held: np.ndarray
+    uncertain: torch.Tensor | None
+    resting: np.ndarray
+    behind: torch.Tensor | None
+
+
+def read_evidence(demo: Demonstration, known: dict[str, float], config: OptimizeConfig,
+                  device: torch.device) -> Evidence:
+    """The :class:`Evidence` of one demonstration with its ``known`` lengths."""
+    inputs = working_inputs(demo, config, device)
+    weights = config.weights.for_scene(known_length=bool(known), object_from_boxes=bool(inputs.targets.boxed[1]))
+    held = held_after_contact(inputs.masks.cpu().numpy(), inputs.contact_signal)
+    rest = cut = np.zeros(demo.num_frames, dtype=bool)
+    if demo.num_static:
+        full = demo.mask_stack(*demo.image_size)
+        rest, cut = rests_on_static(full, inputs.contact_signal), cut_by_static(full, inputs.contact_signal)
+    return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut))
+
+
+@dataclass
+class Candidate:
+    """A stage (a) hypothesis: one demonstration started from one object-depth guess.
+
+    Attributes:
+        demo: the demonstration's index.
+        guess: the first scene (:func:`~warpskill.optimizer.guess.initial_guess`).
+        support: (N,) 1 in the frames where the object stands on the static box (the
+            hypothesis "on the static", which goes on to the physics whatever its loss);
+            None for the depth hypotheses that are rivals (the lowest loss wins).
+        parameters: stage (a)'s parameters, started at ``guess``.
+    """
+
+    demo: int
+    guess: SceneTrajectories
+    support: torch.Tensor | None
+    parameters: InitialParameters
+
+
+def stage_a_candidates(evidence: Sequence[Evidence], typical_camera_height: float,
+                       device: torch.device) -> list[Candidate]:
+    """Every demonstration from each object-depth hypothesis, demonstration by demonstration.
+
+    "On the static" is tried only where the object may rest on the static box; a guess equal
+    to an earlier one of the same demonstration (the object's box bottom stays on one row)
+    is fitted once. The hand's tilt read off its foreshortening starts the hand only where
+    the scale is free: with a known length it was a worse start.
+    """
+    candidates: list[Candidate] = []
+    for i, seen in enumerate(evidence):
+        given = seen.inputs
+        for hypothesis in OBJECT_DEPTH_HYPOTHESES:
+            on_static = hypothesis == "on the static"
+            if on_static and not seen.resting.any():
+                continue
+            guess = initial_guess(given.masks.cpu().numpy(), given.contact_signal, given.intrinsics,
+                                  seen.demo.num_static, object_depth=hypothesis, resting=seen.resting,
+                                  hand_width=not given.hand_boxed, hand_tilt=not seen.known,
+                                  carried=given.contact_signal | seen.held,
+                                  typical_camera_height=typical_camera_height)
+            if any(c.demo == i and guess.same_as(c.guess) for c in candidates):
+                continue
+            support = torch.as_tensor(seen.resting, dtype=torch.float32, device=device) if on_static else None
+            candidates.append(Candidate(i, guess, support, InitialParameters(guess, seen.known).to(device)))
+    return candidates
+
+
+def rival_groups(candidates: Sequence[Candidate]) -> list[int | None]:
+    """Each candidate's group of rivals (its demonstration), None for a placement on the static box."""
+    return [c.demo if c.support is None else None for c in candidates]
+
+
+def stage_a_winners(candidates: Sequence[Candidate], losses: Sequence[float], num_demos: int) -> list[int]:
+    """Per demonstration, the index of its rival candidate with the lowest stage (a) loss."""
+    return [min((j for j, c in enumerate(candidates) if c.demo == i and c.support is None), key=lambda j: losses[j])
+            for i in range(num_demos)]
+
+
+@dataclass
+class PhysicsHypothesis:
+    """A stage (b) hypothesis: one start and one contact signal of a demonstration.
+
+    Attributes:
+        demo: the demonstration's index.
+        start: stage (a)'s per-frame scene it starts from.
+        signal: (N,) bool, the contact signal variant: as given, or extended to the video's
+            end where the object may still be held.
+        contact: ``signal`` as (N,) floats on the device.
+        support: (N,) 1 where the object is to stand on the static box (the start is that
+            placement); None for stage (a)'s winner.
+        scene: its physics parameters (set by the pipeline, which weighs the spline's start
+            by how well stage (a) matched each frame's hand).
+        fit: the perceptual loss of its final simulation (set by the pipeline).
+    """
+
+    demo: int
+    start: SceneTrajectories
+    signal: np.ndarray
+    contact: torch.Tensor
+    support: torch.Tensor | None
+    scene: PhysicalScene | None = None
+    fit: float | None = None
+
+
+def physics_hypotheses(evidence: Sequence[Evidence], candidates: Sequence[Candidate], winners: Sequence[int],
+                       device: torch.device) -> list[PhysicsHypothesis]:
+    """Per demonstration, each start (stage (a)'s winner and each placement on the static box)
+    with each contact signal (as given and, where the object may still be held after it
+    ends, extended to the video's end)."""
+    hypotheses = []
+    for i, seen in enumerate(evidence):
+        signal = seen.inputs.contact_signal
+        variants = [signal] + ([signal | seen.held] if seen.held.any() else [])
+        starts = [(candidates[winners[i]], None)] + [(c, c.support) for c in candidates
+                                                     if c.demo == i and c.support is not None]
+        for candidate, support in starts:
+            start = candidate.parameters.scene().detached()
+            for variant in variants:
+                contact = torch.as_tensor(variant, dtype=torch.float32, device=device)
+                hypotheses.append(PhysicsHypothesis(i, start, variant, contact, support))
+    return hypotheses
+
+
+def unseen_before_contact(seen: Evidence, signal: np.ndarray) -> bool:
+    """Whether the object's mask is empty in every frame before ``signal``'s (N,) onset."""
+    onset = np.flatnonzero(signal)
+    return len(onset) > 0 and not bool(seen.inputs.object_visible[: onset[0]].any())
+
+
+def chosen_simulation(seen: Evidence, own: Sequence[PhysicsHypothesis], results: Sequence[PhysicalRollout]) -> int:
+    """Index into ``own`` (one demonstration's hypotheses, with their final ``results``) of the
+    simulation to keep: the best fit among those the masks do not contradict.
+
+    Where the masks show the object's bottom inside the static's box after the release, a
+    simulation that ends with the object behind the box contradicts them: the renderer draws
+    the object whole, but the box would hide it there.
+    """
+    contradicted = [bool(seen.resting.any()) and ends_behind_static(result.scene) for result in results]
+    return best_simulation([h.fit for h in own], contradicted)
+
+
+def best_simulation(fits: Sequence[float], contradicted: Sequence[bool]) -> int:
+    """Index of the simulation with the lowest perceptual loss among those the masks do not
+    contradict (among all when every one is)."""
+    pool = [k for k in range(len(fits)) if not contradicted[k]] or range(len(fits))
+    return min(pool, key=lambda k: fits[k])
