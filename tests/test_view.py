@@ -7,6 +7,7 @@ import importlib.metadata
 import importlib.util
 import sys
 
+import imageio.v3 as iio
 import numpy as np
 import pytest
 
@@ -17,7 +18,8 @@ from warpskill.cli import main
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.replay import Replay
 from warpskill.synthetic import make_demonstration
-from warpskill.visual.rerun_view import view, view_folder
+from warpskill.cli.view import view_folder
+from warpskill.visual.rerun_view import view
 from warpskill.visual.rerun_entities import HAND_LENGTH, HAND_RADIUS
 from warpskill.visual.rerun_scene import CLASS_IDS, rendered_labels
 
@@ -60,6 +62,13 @@ def robot_run(recon):
 
     plan = retarget(recon)
     return plan, replay(plan, recon)
+
+
+def track(plan, recon, result=None):
+    """The Panda's track the recording draws (:func:`warpskill.robot.robot_track`)."""
+    from warpskill.robot import robot_track
+
+    return robot_track(plan, float(recon.fps), result)
 
 
 def read_rrd(path) -> dict[str, dict[str, list]]:
@@ -194,6 +203,20 @@ def test_rendered_labels_are_kept_for_the_same_values(recon):
     assert second is not first and not np.array_equal(second, first)
 
 
+def test_scene_shows_the_video_frames(tmp_path, demo, recon):
+    frames = np.zeros((recon.num_frames, *demo.image_size, 3), np.uint8)
+    frames[..., 0] = np.arange(recon.num_frames, dtype=np.uint8)[:, None, None] * 20  # red grows frame by frame
+    frames[:, 10:30, 20:50, 1] = 200
+    data = read_rrd(view(recon, demo, frames=frames, path=tmp_path / "scene.rrd"))
+    video = data["/world/camera/image/video"]
+    assert video["frame"] == list(range(recon.num_frames))
+    decoded = np.stack([iio.imread(bytes(blob[0]), extension=".jpg") for blob in video["EncodedImage:blob"]])
+    assert decoded.shape == frames.shape
+    assert np.abs(decoded.astype(int) - frames).mean() < 4.0  # JPEG: the same pictures, nearly exact
+    with pytest.raises(ValueError, match="frames"):
+        view(recon, demo, frames=frames[:-1], path=tmp_path / "bad.rrd")
+
+
 def test_scene_without_demo(tmp_path, recon):
     data = read_rrd(view(recon, path=tmp_path / "scene.rrd"))
     assert "/world/camera/image/rendered" in data and "/world/camera/image/masks" not in data
@@ -204,7 +227,7 @@ def test_scene_without_demo(tmp_path, recon):
 @needs_robot
 def test_scene_with_robot(tmp_path, demo, recon, robot_run):
     plan, result = robot_run
-    data = read_rrd(view(recon, demo, plan, result, path=tmp_path / "scene.rrd"))
+    data = read_rrd(view(recon, demo, track(plan, recon, result), result, path=tmp_path / "scene.rrd"))
     replayed = result.reconstruction
     F = replayed.num_frames
     links = [f"/world/robot/panda_link{i}" for i in range(8)] + [
@@ -223,7 +246,7 @@ def test_scene_with_robot(tmp_path, demo, recon, robot_run):
     tcp = data["/world/robot/panda_hand_tcp"]
     assert np.abs(one_per_row(tcp["Transform3D:translation"]) - replayed.hand_pos).max() < 1e-3
     tcp_rot = np.array([np.array(m[0]).reshape(3, 3, order="F") for m in tcp["Transform3D:mat3x3"]])
-    hand_rot = tcp_rot @ np.diag([1.0, -1.0, -1.0])  # TCP frame -> hand frame of FORMATS.md
+    hand_rot = tcp_rot @ np.diag([1.0, -1.0, -1.0])  # TCP frame -> hand frame of docs/formats.md
     assert np.abs(hand_rot - replayed.hand_rot).max() < 1e-2
     base = data["/world/robot/panda_link0"]
     assert np.allclose(one_per_row(base["Transform3D:translation"])[0], plan.base[:3, 3], atol=1e-6)
@@ -241,7 +264,7 @@ def test_scene_with_robot(tmp_path, demo, recon, robot_run):
 @needs_robot
 def test_robot_without_replay_follows_the_plan(tmp_path, recon, robot_run):
     plan, result = robot_run
-    data = read_rrd(view(recon, plan=plan, path=tmp_path / "scene.rrd"))
+    data = read_rrd(view(recon, robot=track(plan, recon), path=tmp_path / "scene.rrd"))
     F = result.reconstruction.num_frames
     tcp = one_per_row(data["/world/robot/panda_hand_tcp"]["Transform3D:translation"])
     assert tcp.shape == (F, 3)
@@ -273,7 +296,7 @@ def test_view_folder(tmp_path, demo, recon, robot_run):
     # replay.npz stores the simulated joints: the arm is the simulated one, as from the Replay itself.
     stored = Replay.load(tmp_path / "replay.npz")
     assert np.array_equal(stored.joints, result.joints)
-    direct = read_rrd(view(recon, demo, robot_run[0], result, path=tmp_path / "direct.rrd"))
+    direct = read_rrd(view(recon, demo, track(robot_run[0], recon, result), result, path=tmp_path / "direct.rrd"))
     for link in ("/world/robot/panda_link4", "/world/robot/panda_hand_tcp"):
         assert data[link]["Transform3D:translation"] == direct[link]["Transform3D:translation"], link
     tcp = one_per_row(data["/world/robot/panda_hand_tcp"]["Transform3D:translation"])

@@ -4,7 +4,8 @@ The frame size, rate, camera and lights are the ``[video]`` table of
 ``assets/robot_scene.toml`` (:func:`~warpskill.robot.scene_config.load_scene_config`): the
 camera looks at a point between the robot base and the scene from the robot's front left, so the
 whole arm, the table and the cuboids are in view; a headlight and directional lights
-(added by :func:`~warpskill.robot.replay_mujoco.build_model`) light them.
+(added by :func:`~warpskill.robot.replay_mujoco.build_model`) light them. The object, the
+static cuboids and the arm wear the colours of the pictures (:mod:`warpskill.media`'s palette).
 """
 
 from __future__ import annotations
@@ -15,8 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
+from warpskill.media import GRIPPER_COLOR, OBJECT_COLOR, ROBOT_COLOR, STATIC_COLOR, figure, rgb, save_figure, write_mp4
+from warpskill.robot import replay_mujoco
 from warpskill.robot.scene_config import CameraConfig, load_scene_config
-from warpskill.visual.media import figure, save_figure, write_video
 
 
 def prefer_headless_gl() -> None:
@@ -64,8 +66,9 @@ class _Recorder:
         self.renderer = None
 
     def start(self, model):
-        import mujoco
+        import mujoco  # the optional extra "robot"
 
+        _paint(model)
         self.renderer = mujoco.Renderer(model, *self.size)
         self.camera = mujoco.MjvCamera()
         self.camera.lookat[:] = self.view["lookat"]
@@ -90,15 +93,30 @@ def record(plan, recon, result, out: Path) -> Path:
     if frames is None:
         return _plot(result.reconstruction, out / "replay.png")
     try:
-        return write_video(out / "replay.mp4", frames, VIDEO_FPS)
+        return write_mp4(out / "replay.mp4", frames, VIDEO_FPS)
     except OSError:  # no MP4 writer here
         return _plot(result.reconstruction, out / "replay.png")
 
 
+def _paint(model) -> None:
+    """Colour the compiled scene ``model`` as the pictures do: the object, the static cuboids,
+    the arm and the gripper (rendering only: colours change no physics)."""
+    for g in range(model.ngeom):
+        name = model.geom(g).name
+        body = model.body(model.geom_bodyid[g]).name
+        if name == "object":
+            color = OBJECT_COLOR
+        elif name.startswith("static"):
+            color = STATIC_COLOR
+        elif body.startswith("panda_"):
+            color = GRIPPER_COLOR if "finger" in body or body == "panda_hand" else ROBOT_COLOR
+        else:
+            continue
+        model.geom_rgba[g] = (*rgb(color), 1.0)
+
+
 def _render(plan, recon) -> np.ndarray | None:
     """(F, H, W, 3) frames of the whole plan at :data:`VIDEO_FPS`, or None without an offscreen renderer."""
-    from warpskill.robot import replay_mujoco
-
     recorder = _Recorder(camera_view(plan.base, recon))
     try:
         replay_mujoco.simulate(plan, recon, np.arange(0.0, plan.t[-1] + 1e-9, 1.0 / VIDEO_FPS), video=recorder)
@@ -116,10 +134,10 @@ def _render(plan, recon) -> np.ndarray | None:
 def _plot(replayed, path: Path) -> Path:
     fig = figure(6.0, 5.0)
     ax = fig.add_subplot(projection="3d")
-    ax.plot(*replayed.hand_pos.T, label="gripper TCP")
-    ax.plot(*replayed.object_pos.T, label="object centre")
+    ax.plot(*replayed.hand_pos.T, color=rgb(GRIPPER_COLOR), label="gripper TCP")
+    ax.plot(*replayed.object_pos.T, color=rgb(OBJECT_COLOR), label="object centre")
     for corners in replayed.static_corners():
-        ax.scatter(*corners.T, s=4, c="grey")
+        ax.scatter(*corners.T, s=4, color=rgb(STATIC_COLOR))
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_zlabel("z [m]")

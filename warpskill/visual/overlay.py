@@ -11,12 +11,11 @@ import numpy as np
 from warpskill.contract.camera import Intrinsics
 from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.raycast import raycast_masks
+from warpskill.media import HAND_COLOR, OBJECT_COLOR, STATIC_COLOR
 
 if TYPE_CHECKING:
     from warpskill.contract.demonstration import Demonstration
     from warpskill.contract.reconstruction import Reconstruction
-
-from warpskill.visual.palette import HAND_COLOR, OBJECT_COLOR, STATIC_COLOR
 
 FILL_ALPHA = 0.5
 

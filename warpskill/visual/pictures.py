@@ -15,7 +15,7 @@
   ``grasped`` over time, contact frames shaded, ground truth dashed when the
   demonstration has it.
 
-Units: metres, seconds, radians (``FORMATS.md``); images are H x W pixels, RGB uint8.
+Units: metres, seconds, radians (``docs/formats.md``); images are H x W pixels, RGB uint8.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from warpskill.visual.media import VIDEO_FORMATS, save_figure, write_video
+from warpskill.media import VIDEO_FORMATS, save_figure, write_video
 from warpskill.visual.overlay import (
     check_picture_inputs,
     check_render_scale,

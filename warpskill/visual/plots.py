@@ -13,18 +13,17 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Polygon
 
 from warpskill.engine.projection import camera_rotation
-from warpskill.visual.media import figure
+from warpskill.media import HAND_COLOR, HAND_HELD_COLOR, OBJECT_COLOR, STATIC_COLOR, figure, rgb
 
 if TYPE_CHECKING:
     from warpskill.contract.demonstration import Demonstration
     from warpskill.contract.reconstruction import Reconstruction
 
-from warpskill.visual.palette import OBJECT_COLOR, STATIC_COLOR, rgb
 
 _AXIS_COLORS = {"x": "tab:red", "y": "tab:green", "z": "tab:blue"}
 
 
-_GRASP_CMAP = LinearSegmentedColormap.from_list("grasp", ["#ffb060", "#8b1a00"])
+_GRASP_CMAP = LinearSegmentedColormap.from_list("grasp", [rgb(HAND_COLOR), rgb(HAND_HELD_COLOR)])
 
 
 def top_view_figure(recon: Reconstruction) -> Figure:

@@ -2,50 +2,40 @@
 
 :func:`log_scene` writes the entity tree of ``docs/viewer.md``: static data once, per-frame
 data as columns on the timelines ``time`` (seconds) and ``frame`` (index); world frame of
-``FORMATS.md`` (z up, metres). :func:`blueprint` is the recording's default layout.
-Imports ``rerun`` (the optional ``rerun-sdk``) on first use.
+``docs/formats.md`` (z up, metres). :func:`blueprint` is the recording's default layout.
+Colours are the palette of :mod:`warpskill.media`, as in every picture. Imports ``rerun``
+(the optional ``rerun-sdk``) on first use.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from warpskill.visual.rerun_scene import CLASS_IDS, RobotTrack, SceneData
+from warpskill.media import (
+    GRIPPER_COLOR,
+    HAND_COLOR,
+    HAND_HELD_COLOR,
+    OBJECT_COLOR,
+    REPLAY_OBJECT_COLOR,
+    ROBOT_COLOR,
+    STATIC_COLOR,
+    TRUTH_COLOR,
+)
+from warpskill.visual.rerun_scene import CLASS_IDS, SceneData
 
 __all__ = ["HAND_LENGTH", "HAND_RADIUS", "blueprint", "log_scene", "quaternions"]
 
 HAND_LENGTH = 0.40
-"""Length [m] of the hand cylinder (``FORMATS.md``)."""
+"""Length [m] of the hand cylinder (``docs/formats.md``)."""
 
 HAND_RADIUS = 0.04
-"""Radius [m] of the hand cylinder (``FORMATS.md``)."""
-
-HAND_FREE_COLOR = (255, 176, 96)
-"""RGB of the hand while ``grasped`` = 0 (light orange); it darkens towards :data:`HAND_HELD_COLOR`."""
-
-HAND_HELD_COLOR = (139, 26, 0)
-"""RGB of the hand while ``grasped`` = 1 (dark red)."""
-
-OBJECT_COLOR = (40, 200, 70)
-"""RGB of the manipulated object (green, as in ``pictures.py``)."""
-
-STATIC_COLOR = (40, 110, 255)
-"""RGB of the static objects (blue, as in ``pictures.py``)."""
-
-TRUTH_COLOR = (255, 255, 255)
-"""RGB of the ground truth of a synthetic demonstration (white wireframe and path)."""
-
-REPLAY_OBJECT_COLOR = (230, 60, 200)
-"""RGB of the object simulated in the robot replay (magenta)."""
-
-ROBOT_COLOR = (225, 225, 230)
-"""RGB of the Panda's arm links."""
-
-GRIPPER_COLOR = (60, 60, 65)
-"""RGB of the Panda's hand and fingers."""
+"""Radius [m] of the hand cylinder (``docs/formats.md``)."""
 
 GROUND_COLOR = (110, 110, 100, 170)
 """RGBA of the ground plane."""
+
+VIDEO_JPEG_QUALITY = 90
+"""JPEG quality (0-100) of the demonstration's video frames in the recording."""
 
 IMAGE_PLANE_DISTANCE = 0.15
 """Distance [m] from the camera at which the 3D view draws the image plane."""
@@ -53,7 +43,7 @@ IMAGE_PLANE_DISTANCE = 0.15
 
 def log_scene(rec, scene: SceneData) -> None:
     """Log the whole scene into the recording stream ``rec``."""
-    import rerun as rr
+    import rerun as rr  # the optional extra "viewer"
 
     recon = scene.recon
     rec.set_log_tick_enabled(False)
@@ -68,7 +58,7 @@ def log_scene(rec, scene: SceneData) -> None:
 
     # Hand: a cylinder from the tip along the hand's local +z, darker while grasped.
     held = np.clip(recon.grasped, 0.0, 1.0)[:, None]
-    hand_colors = np.round((1.0 - held) * HAND_FREE_COLOR + held * HAND_HELD_COLOR).astype(np.uint8)
+    hand_colors = np.round((1.0 - held) * np.array(HAND_COLOR) + held * np.array(HAND_HELD_COLOR)).astype(np.uint8)
     _log_hand(rr, rec, index, recon.hand_pos, recon.hand_rot, hand_colors)
     _log_box_track(rr, rec, "world/object", index, recon.object_pos, recon.object_rot, recon.object_size,
                    OBJECT_COLOR, "object")
@@ -99,7 +89,7 @@ def log_scene(rec, scene: SceneData) -> None:
         _log_box_track(rr, rec, "world/replay/object", rep_index, rep.object_pos, rep.object_rot, rep.object_size,
                        REPLAY_OBJECT_COLOR, "replayed object", fill_mode="transparentfillmajorwireframe")
         _log_path(rr, rec, "world/paths/replay_object", rep.object_pos, REPLAY_OBJECT_COLOR, 0.003)
-        _log_path(rr, rec, "world/paths/robot_tcp", rep.hand_pos, (90, 90, 90), 0.002)
+        _log_path(rr, rec, "world/paths/robot_tcp", rep.hand_pos, GRIPPER_COLOR, 0.002)
         _log_scalar(rr, rec, "plots/state/robot_grasped", rep_index, rep.grasped, REPLAY_OBJECT_COLOR,
                     "fingers touch object (replay)")
     if scene.robot is not None:
@@ -127,6 +117,8 @@ def _log_camera(rr, rec, scene: SceneData) -> None:
     for k in range(recon.num_frames):
         rec.set_time("time", duration=float(recon.t[k]))
         rec.set_time("frame", sequence=k)
+        if scene.frames is not None:
+            rec.log("world/camera/image/video", rr.Image(scene.frames[k], draw_order=-1.0).compress(VIDEO_JPEG_QUALITY))
         if scene.masks is not None:
             rec.log("world/camera/image/masks", rr.SegmentationImage(scene.masks[k], opacity=1.0, draw_order=0.0))
         rec.log("world/camera/image/rendered", rr.SegmentationImage(scene.rendered[k], opacity=0.6, draw_order=1.0))
@@ -160,8 +152,8 @@ def _log_scalar(rr, rec, entity, index, values, color, name) -> None:
     rec.send_columns(entity, indexes=index, columns=rr.Scalars.columns(scalars=np.asarray(values, float)))
 
 
-def _log_robot(rr, rec, robot: RobotTrack) -> None:
-    """The Panda: per link a per-frame world pose, its collision shapes logged once under it."""
+def _log_robot(rr, rec, robot) -> None:
+    """The Panda (a track of :data:`~warpskill.visual.rerun_scene.ROBOT_TRACK_FIELDS`): per link a per-frame world pose, its collision shapes logged once under it."""
     index = _index(rr, robot.times)
     for link, poses in robot.links.items():
         entity = f"world/robot/{link}"
@@ -205,7 +197,7 @@ def _annotations(num_static: int) -> list:
     """Class id -> (label, RGBA) of the label images."""
     classes = [
         (CLASS_IDS["background"], "background", (0, 0, 0, 0)),
-        (CLASS_IDS["hand"], "hand", (255, 140, 20, 255)),
+        (CLASS_IDS["hand"], "hand", (*HAND_COLOR, 255)),
         (CLASS_IDS["object"], "object", (*OBJECT_COLOR, 255)),
     ]
     classes += [(CLASS_IDS["static"] + k, f"static {k}", (*STATIC_COLOR, 255)) for k in range(num_static)]
@@ -244,9 +236,11 @@ def quaternions(R: np.ndarray) -> np.ndarray:
 
 def blueprint(scene: SceneData):
     """Default layout: the 3D scene left; the masks, the rendered silhouettes and the plots right."""
-    import rerun.blueprint as rrb
+    import rerun.blueprint as rrb  # the optional extra "viewer"
 
     images = []
+    if scene.frames is not None:
+        images.append(rrb.Spatial2DView(origin="world/camera/image", contents="$origin/video", name="video (demo)"))
     if scene.masks is not None:
         images.append(rrb.Spatial2DView(origin="world/camera/image", contents="$origin/masks", name="masks (demo)"))
     images.append(

@@ -1,9 +1,9 @@
-"""What a Rerun recording shows, checked and computed once: label images and the robot's track.
+"""What a Rerun recording shows, checked and computed once: label images, video frames, the robot.
 
 :func:`prepare_scene` checks the inputs of :func:`warpskill.visual.rerun_view.view` against
-each other and computes the demonstration's and the reconstruction's label images and the
-Panda's link poses (:func:`warpskill.robot.link_poses`) at the replay's frames. It imports
-no Rerun: :mod:`.rerun_entities` logs the result.
+each other and computes the demonstration's and the reconstruction's label images. The
+robot comes as a track already posed (:func:`warpskill.robot.robot_track`; visual never
+imports the robot). It imports no Rerun: :mod:`.rerun_entities` logs the result.
 """
 
 from __future__ import annotations
@@ -11,20 +11,17 @@ from __future__ import annotations
 import dataclasses
 import functools
 import types
-from typing import TYPE_CHECKING
 
 import numpy as np
+import torch
 
 from warpskill.contract.camera import Intrinsics
 from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.replay import Replay
+from warpskill.engine.rendering import render_silhouettes
 
-if TYPE_CHECKING:
-    from warpskill.robot.kinematics import LinkShape
-    from warpskill.robot.plan import RobotPlan
-
-__all__ = ["CLASS_IDS", "RobotTrack", "SceneData", "mask_labels", "prepare_scene", "rendered_labels", "robot_track"]
+__all__ = ["CLASS_IDS", "ROBOT_TRACK_FIELDS", "SceneData", "mask_labels", "prepare_scene", "rendered_labels"]
 
 CLASS_IDS = {"background": 0, "hand": 1, "object": 2, "static": 3}
 """Class ids of the label images: static object k has id ``3 + k``."""
@@ -33,25 +30,11 @@ LABEL_THRESHOLD = 0.5
 """Soft silhouette coverage above which a rendered pixel counts as covered."""
 
 
-@dataclasses.dataclass
-class RobotTrack:
-    """The Panda at F frames, frame k at recording time k / fps.
-
-    Attributes:
-        times: (F,) recording time [s] of each frame.
-        links: link name -> (F, 4, 4) world poses (:func:`warpskill.robot.link_poses`).
-        shapes: link name -> its collision shapes in the link frame (:func:`warpskill.robot.link_shapes`).
-        gripper: (F,) commanded gripper opening [m] (the plan's, at the frames).
-        base: (4, 4) world pose of the robot base.
-        simulated: whether the arm joints are the replay's (True) or the plan's (False).
-    """
-
-    times: np.ndarray
-    links: dict[str, np.ndarray]
-    shapes: dict[str, list[LinkShape]]
-    gripper: np.ndarray
-    base: np.ndarray
-    simulated: bool
+ROBOT_TRACK_FIELDS = ("times", "links", "shapes", "gripper", "base", "simulated")
+"""What a robot track has (:class:`warpskill.robot.RobotTrack`): (F,) times [s], link name ->
+(F, 4, 4) world poses, link name -> collision shapes (``kind``, ``pose``, ``size``,
+``vertices``, ``triangles``), (F,) gripper opening [m], (4, 4) base pose, and whether the
+joints are simulated."""
 
 
 @dataclasses.dataclass
@@ -61,32 +44,35 @@ class SceneData:
     Attributes:
         recon: the reconstruction.
         demo: its demonstration, or None.
+        frames: (N, H, W, 3) uint8 RGB video frames of the demonstration, or None.
         masks: (N, H, W) uint8 class ids of the demonstration's masks, or None.
         rendered: (N, H, W) uint8 class ids the reconstruction's camera sees.
         replayed: the replay's reconstruction (gripper TCP and simulated object), or None.
-        robot: the Panda's track, or None.
+        robot: the Panda's track (:data:`ROBOT_TRACK_FIELDS`), or None.
     """
 
     recon: Reconstruction
     demo: Demonstration | None
+    frames: np.ndarray | None
     masks: np.ndarray | None
     rendered: np.ndarray
     replayed: Reconstruction | None
-    robot: RobotTrack | None
+    robot: object | None
 
 
 def prepare_scene(
     recon: Reconstruction,
     demo: Demonstration | None = None,
-    plan: RobotPlan | None = None,
+    robot=None,
     replay: Replay | None = None,
+    frames: np.ndarray | None = None,
 ) -> SceneData:
-    """Check the inputs against each other; compute the label images and the robot's track.
+    """Check the inputs against each other; compute the label images.
 
     Raises:
         TypeError: an argument of the wrong type.
-        ValueError: ``demo`` or ``replay`` disagrees with ``recon`` (frame count, image
-            size, intrinsics, frame rate), or ``replay`` with ``plan`` (frame count).
+        ValueError: ``demo``, ``replay`` or ``frames`` disagree with ``recon`` (frame count,
+            image size, intrinsics, frame rate).
     """
     if not isinstance(recon, Reconstruction):
         raise TypeError(f"recon: expected a warpskill.Reconstruction, got {type(recon).__name__}")
@@ -101,21 +87,28 @@ def prepare_scene(
             raise ValueError(f"replay fps {float(replayed.fps)} differs from the reconstruction's {float(recon.fps)}")
         if np.shape(replay.joints) != (replayed.num_frames, 7):
             raise ValueError(f"replay.joints: expected shape ({replayed.num_frames}, 7), got {np.shape(replay.joints)}")
-    robot = None
-    if plan is not None:
-        from warpskill.robot.plan import RobotPlan
-
-        if not isinstance(plan, RobotPlan):
-            raise TypeError(f"plan: expected a warpskill.RobotPlan or None, got {type(plan).__name__}")
-        robot = robot_track(plan, float(recon.fps), replay)
+    if robot is not None and not all(hasattr(robot, name) for name in ROBOT_TRACK_FIELDS):
+        raise TypeError(f"robot: expected a robot track (warpskill.robot.robot_track(plan, fps, replay)), "
+                        f"got {type(robot).__name__}")
     return SceneData(
         recon=recon,
         demo=demo,
+        frames=None if frames is None else _checked_frames(recon, frames),
         masks=None if demo is None else mask_labels(demo),
         rendered=rendered_labels(recon),
         replayed=replayed,
         robot=robot,
     )
+
+
+def _checked_frames(recon: Reconstruction, frames: np.ndarray) -> np.ndarray:
+    """``frames`` as (N, H, W, 3) uint8 of the reconstruction's N frames and image size."""
+    frames = np.asarray(frames)
+    expected = (recon.num_frames, *(int(x) for x in recon.image_size), 3)
+    if frames.shape != expected or frames.dtype != np.uint8:
+        raise ValueError(f"frames: expected {expected} uint8 RGB frames of the reconstruction, "
+                         f"got {frames.shape} {frames.dtype}")
+    return frames
 
 
 def _check_demo(recon: Reconstruction, demo: Demonstration) -> None:
@@ -174,10 +167,6 @@ def _render_once(key: tuple) -> np.ndarray:
 
 
 def _render(recon) -> np.ndarray:
-    import torch
-
-    from warpskill.engine.rendering import render_silhouettes
-
     H, W = (int(x) for x in recon.image_size)
     N, K = len(recon.hand_pos), len(recon.static_pos)
     cuboid_pos = np.concatenate([recon.object_pos[:, None], np.broadcast_to(recon.static_pos, (N, K, 3))], axis=1)
@@ -207,39 +196,3 @@ def _render(recon) -> np.ndarray:
         labels[better] = channel + 1
         np.maximum(best, masks[:, channel], out=best)
     return labels
-
-
-def robot_track(plan: RobotPlan, fps: float, replay: Replay | None = None) -> RobotTrack:
-    """The Panda at the frames :func:`warpskill.robot.replay` samples: plan time ``start_time + k / fps``.
-
-    Args:
-        plan: the robot plan.
-        fps: the reconstruction's frame rate.
-        replay: the plan's replay: the arm follows its simulated joints; None: the plan's
-            (interpolated at the frames).
-
-    Raises:
-        ValueError: ``replay`` has another number of frames than the plan samples at ``fps``.
-        ModuleNotFoundError: MuJoCo is not installed.
-        RuntimeError: the Panda model (``example-robot-data``) is not installed.
-    """
-    from warpskill.robot.kinematics import link_poses, link_shapes
-
-    count = len(np.arange(plan.start_time, plan.t[-1] + 1e-9, 1.0 / fps))
-    plan_times = plan.start_time + np.arange(count) / fps
-    if replay is None:
-        joints = np.stack([np.interp(plan_times, plan.t, plan.q[:, i]) for i in range(7)], axis=1)
-    elif len(replay.joints) != count:
-        raise ValueError(f"replay has {len(replay.joints)} frames, the plan {count} at {fps:g} fps: not its replay")
-    else:
-        joints = np.asarray(replay.joints, float)
-    gripper = np.interp(plan_times, plan.t, plan.gripper)
-    base = np.asarray(plan.base, float)
-    return RobotTrack(
-        times=np.arange(count) / fps,
-        links=link_poses(joints, gripper, base),
-        shapes=link_shapes(),
-        gripper=gripper,
-        base=base,
-        simulated=replay is not None,
-    )
