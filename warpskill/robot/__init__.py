@@ -2,10 +2,11 @@
 
 Owns the Panda model and its scene, the grasp poses, retargeting (placo) and the MuJoCo and
 Newton replays. May import :mod:`warpskill.contract` (it depends on the reconstruction file,
-never on the optimiser's or the engine's internals) and :mod:`warpskill.visual`'s media
-writers; placo, MuJoCo and Newton are optional (extra ``robot``) and imported on first use.
+never on the optimiser's or the engine's internals) and the media leaf
+(:mod:`warpskill.media`: video writers, the palette), never :mod:`warpskill.visual`; placo, MuJoCo and Newton are optional (extra ``robot``) and imported on first use.
 
 - :func:`retarget`: reconstruction -> :class:`RobotPlan` (placo differential IK).
+- :func:`write_mjcf`: the robot's scene as one MJCF file for the user's own MuJoCo.
 - :func:`replay`: simulate a plan in MuJoCo or Newton -> :class:`Replay` (the simulated
   object and gripper as a reconstruction, and whether the action succeeded).
 
@@ -23,7 +24,10 @@ _EXPORTS = {
     "RobotPlan": "plan",
     "PlanError": "plan",
     "Placement": "model",
+    "make_scene": "model",
     "rank_placements": "placement",
+    "check_reach": "placement",
+    "write_mjcf": "mjcf",
     "fit_sizes": "sizes",
     "replay": "replaying",
     "Replay": "replaying",
@@ -31,6 +35,8 @@ _EXPORTS = {
     "record": "video",
     "link_poses": "kinematics",
     "link_shapes": "kinematics",
+    "RobotTrack": "track",
+    "robot_track": "track",
     "LinkShape": "kinematics",
 }
 

@@ -4,7 +4,7 @@ Both come from MuJoCo's compiled model of the URDF the replay simulates
 (:func:`~warpskill.robot.model.mujoco_urdf`: collision meshes, base at the origin), so a
 link drawn at :func:`link_poses` is exactly where :func:`warpskill.robot.replay` has it for
 the same joints. Link frames are the URDF's (MuJoCo body frames); world frame of
-``FORMATS.md`` (z up, metres).
+``docs/formats.md`` (z up, metres).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The Franka Panda and its scene: the URDF shipped by ``example-robot-data``, the table, the cuboids.
 
-Everything is expressed in the reconstruction's world frame (``FORMATS.md``: z up, the table
+Everything is expressed in the reconstruction's world frame (``docs/formats.md``: z up, the table
 top is z = 0). The robot's base stands on the table at a pose given by a :class:`Placement`
 relative to the reconstructed scene; the manipulated cuboid and the static cuboids keep
 their reconstructed poses. Nothing is downloaded: the URDF and meshes come from the
@@ -95,7 +95,7 @@ class Placement:
 
 @dataclasses.dataclass(frozen=True)
 class Scene:
-    """The robot's world: base pose, table and cuboids (world frame of ``FORMATS.md``).
+    """The robot's world: base pose, table and cuboids (world frame of ``docs/formats.md``).
 
     Attributes:
         base: (4, 4) pose of the robot base (``panda_link0``) in the world.

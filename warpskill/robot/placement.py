@@ -25,10 +25,12 @@ import math
 import numpy as np
 
 from warpskill.contract.reconstruction import Reconstruction
+from warpskill.contract.skill import HELD, LayoutError
 from warpskill.robot.model import Placement, make_scene
 from warpskill.robot.planner import COLLISION_MARGIN, Planner
 
-__all__ = ["COMFORT_REACH", "OFFSETS_X", "OFFSETS_Y", "YAWS", "candidate_placements", "rank_placements", "reach_excess"]
+__all__ = ["COMFORT_REACH", "OFFSETS_X", "OFFSETS_Y", "YAWS", "candidate_placements", "check_reach", "rank_placements",
+           "reach_excess"]
 
 OFFSETS_X = (0.5, 0.42, 0.58, 0.34, 0.66)  # [m] scene centre ahead of the base
 OFFSETS_Y = (0.0, -0.08, 0.08, -0.16, 0.16)  # [m] scene centre to the base's left
@@ -145,3 +147,29 @@ def rank_placements(recon: Reconstruction, keys: list[list[np.ndarray]], default
         scored.append((cost + DEVIATION * _deviation(p, default), p))
     scored.sort(key=lambda item: item[0])
     return [p for _, p in scored[:count]]
+
+
+def check_reach(recon: Reconstruction, placement: Placement | None = None) -> None:
+    """Refuse a scene the Panda cannot serve: the object where the hand takes it and where it lets go
+    (or at the end) out of reach from every candidate placement (or from ``placement``).
+
+    A point counts as reachable when the wrist of a top grasp (:data:`WRIST` above it) lies
+    within :data:`REACH` of the shoulder: a necessary condition, cheap enough to refuse a
+    layout before any planning.
+
+    Raises:
+        LayoutError: one line naming the points and the reach.
+    """
+    held = np.flatnonzero(recon.grasped > HELD)
+    frames = [int(held[0]), min(int(held[-1]) + 1, recon.num_frames - 1)] if len(held) else [0, recon.num_frames - 1]
+    wrists = recon.object_pos[frames] + np.array([0.0, 0.0, WRIST])
+    for p in candidate_placements() if placement is None else [placement]:
+        base = make_scene(recon, p).base
+        shoulder = base[:3, 3] + SHOULDER * base[:3, 2]
+        if np.all(np.linalg.norm(wrists - shoulder, axis=1) <= REACH):
+            return
+    (x0, y0), (x1, y1) = recon.object_pos[frames, :2]
+    where = "any base placement searched" if placement is None else "the given placement"
+    raise LayoutError(f"layout refused: out of the Panda's reach: from {where} the object's grasp at "
+                      f"({x0:.2f}, {y0:.2f}) m and its release at ({x1:.2f}, {y1:.2f}) m are not both within "
+                      f"{REACH:.2f} m of the shoulder")

@@ -19,11 +19,13 @@ Keys of the plan ``.npz`` (units: seconds, radians, metres):
 | ``offset``, ``yaw`` | (2,), () | the placement: scene centre in the base frame [m], the base's heading [rad] |
 | ``placement`` | () str | ``auto`` (searched) or ``given`` |
 | ``object_size``, ``object_pos``, ``object_rot`` | (3,), (F, 3), (F, 3, 3) | the object the robot handles: its size, centre path and (upright) rotations (reconstruction frames); one carried into view rests until the robot takes it |
-| ``static_size``, ``static_pos`` | (K, 3), (K, 3) | the static cuboids the robot works with |
+| ``static_size``, ``static_pos``, ``static_rot`` | (K, 3), (K, 3), (K, 3, 3) | the static cuboids the robot works with |
 | ``note`` | () str | what was changed for the robot (a substituted object), or empty |
+| ``layout_object``, ``layout_static``, ``layout_object_size`` | (3,), (K, 3), (3,) | the :class:`~warpskill.contract.skill.Layout` the skill was carried to (x, y, yaw); absent: the demonstrated layout |
 
 The sizes and poses are those the replays simulate (:meth:`RobotPlan.scene`); plans
-without them (older files) replay the reconstruction's.
+without them (older files) replay the reconstruction's. A plan with a layout replays the
+reconstruction's skill carried to it (:meth:`~warpskill.contract.skill.Skill.apply`).
 
 The CSV has one row per sample: ``t, q1..q7, gripper, phase`` where ``phase`` is
 ``approach``, ``grasp``, ``hold``, ``release`` or ``retreat``.
@@ -38,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from warpskill.contract.npz import read_npz, save_npz_atomic
+from warpskill.contract.skill import Layout, skill_from
 
 
 class PlanError(ValueError):
@@ -70,7 +73,9 @@ class RobotPlan:
     object_rot: np.ndarray | None = None
     static_size: np.ndarray | None = None
     static_pos: np.ndarray | None = None
+    static_rot: np.ndarray | None = None
     note: str = ""
+    layout: Layout | None = None
 
     @property
     def num_samples(self) -> int:
@@ -83,11 +88,16 @@ class RobotPlan:
         return float(self.t[1] - self.t[0])
 
     def scene(self, recon):
-        """``recon`` with the cuboids the plan was made for (the sizes and poses it handles, the object's start too)."""
+        """``recon`` with the cuboids the plan was made for (the sizes and poses it handles, the object's start too).
+
+        A plan made for a layout first carries ``recon``'s skill there (the hand's path too).
+        """
+        if self.layout is not None:
+            recon = skill_from(recon).apply(self.layout)
         if self.object_size is None:
             return recon
         changes = {name: np.asarray(getattr(self, name), float) for name in
-                   ("object_size", "object_pos", "object_rot", "static_size", "static_pos")
+                   ("object_size", "object_pos", "object_rot", "static_size", "static_pos", "static_rot")
                    if getattr(self, name) is not None}
         for name in ("object_pos", "object_rot"):
             if name in changes and len(changes[name]) != recon.num_frames:
@@ -110,7 +120,9 @@ class RobotPlan:
     def save(self, path: str | os.PathLike) -> None:
         """Write the plan ``.npz`` atomically to ``path``."""
         arrays = {field.name: np.asarray(getattr(self, field.name)) for field in dataclasses.fields(self)
-                  if getattr(self, field.name) is not None}
+                  if getattr(self, field.name) is not None and field.name != "layout"}
+        if self.layout is not None:
+            arrays.update(self.layout.to_arrays())
         save_npz_atomic(path, arrays)
 
     def save_csv(self, path: str | os.PathLike) -> None:
@@ -134,7 +146,7 @@ class RobotPlan:
         missing = [name for name in names if name not in arrays and name not in optional]
         if missing:
             raise PlanError(f"{path}: not a robot plan, missing key(s) {', '.join(missing)}")
-        kwargs = {}
+        kwargs = {"layout": Layout.from_arrays(arrays)}
         for name in names:
             if name not in arrays:
                 continue

@@ -47,10 +47,19 @@ def _quat(R: np.ndarray) -> np.ndarray:
 def build_model(plan: RobotPlan, recon: Reconstruction):
     """The compiled ``mujoco.MjModel`` of the plan's scene (robot base at ``plan.base``).
 
+    The cuboids are those the plan handles (:meth:`RobotPlan.scene`: sizes, poses, the
+    object's start and the plan's layout).
+    """
+    return build_spec(plan.scene(recon), plan.base).compile()
+
+
+def build_spec(recon: Reconstruction, base_pose: np.ndarray):
+    """The ``mujoco.MjSpec`` of the scene: the Panda (base at ``base_pose`` (4, 4)), the table,
+    the static boxes and the object (a free body at its first-frame pose).
+
     Its options, contacts, drives and colours, and the video's lights, backdrop and
     offscreen frame size, are those of :func:`~warpskill.robot.scene_config.load_scene_config`.
     """
-    recon = plan.scene(recon)  # the cuboids as the plan handles them (sizes, poses: the object's start too)
     import mujoco
 
     config = load_scene_config()
@@ -61,8 +70,8 @@ def build_model(plan: RobotPlan, recon: Reconstruction):
     spec.option.impratio = config.mujoco.impratio
     spec.option.integrator = getattr(mujoco.mjtIntegrator, "mjINT_" + config.mujoco.integrator.upper())
     base = spec.body("panda_link0")
-    base.pos = plan.base[:3, 3]
-    base.quat = _quat(plan.base[:3, :3])
+    base.pos = base_pose[:3, 3]
+    base.quat = _quat(base_pose[:3, :3])
     for body in spec.bodies:
         if body.name.startswith("panda_"):
             body.gravcomp = 1.0 if panda.gravity_compensation else 0.0
@@ -78,7 +87,7 @@ def build_model(plan: RobotPlan, recon: Reconstruction):
     for name in FINGER_JOINTS:
         spec.joint(name).damping = [panda.finger_damping, 0.0, 0.0]
     world = spec.worldbody
-    scene = make_scene(recon, base=plan.base)
+    scene = make_scene(recon, base=base_pose)
     for name, T, size in environment_boxes(scene):
         world.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=size / 2, pos=T[:3, 3], quat=_quat(T[:3, :3]),
                        friction=contact.mujoco_friction, condim=contact.condim, contype=1, conaffinity=3,
@@ -96,7 +105,7 @@ def build_model(plan: RobotPlan, recon: Reconstruction):
     for name in FINGER_JOINTS:
         _position_actuator(spec, name, panda.finger_kp, panda.finger_kv, panda.grip_force)
     _add_visuals(spec, config.video)
-    return spec.compile()
+    return spec
 
 
 def _add_visuals(spec, video) -> None:
@@ -133,8 +142,12 @@ def _position_actuator(spec, joint: str, kp: float, kv: float, force: float) -> 
     act.forcerange = [-force, force]
 
 
-def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, video=None) -> dict[str, np.ndarray]:
+def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, video=None,
+             edit_model=None) -> dict[str, np.ndarray]:
     """Run the plan; sample the TCP, the object and the finger contacts at plan ``times``.
+
+    ``edit_model(model)``, where given, changes the built ``mujoco.MjModel`` in place before
+    the run (a perturbed mass, friction or object start).
 
     Returns:
         ``tcp`` (F, 4, 4), ``object_pos`` (F, 3), ``object_rot`` (F, 3, 3), ``held`` (F,) 1
@@ -143,6 +156,8 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, video
     import mujoco
 
     model = build_model(plan, recon)
+    if edit_model is not None:
+        edit_model(model)
     data = mujoco.MjData(model)
     arm_qpos = [model.joint(name).qposadr[0] for name in ARM_JOINTS]
     finger_qpos = [model.joint(name).qposadr[0] for name in FINGER_JOINTS]

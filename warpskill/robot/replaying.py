@@ -4,7 +4,7 @@
 plan, samples the gripper and the object at the reconstruction's frame rate from the
 plan's ``start_time`` (the end of the lead-in) to its end, and packs them as a
 :class:`~warpskill.contract.reconstruction.Reconstruction`: the ``hand_*`` fields hold the gripper's
-TCP (hand frame of ``FORMATS.md``: origin at the TCP, local +z from the fingers towards
+TCP (hand frame of ``docs/formats.md``: origin at the TCP, local +z from the fingers towards
 the arm), ``grasp`` the gripper command (+0.02 closing, -0.02 open), ``grasped`` whether
 both fingers touch the object, the ``object_*`` fields the simulated object.
 """
@@ -25,7 +25,8 @@ GRASP_LEVEL = 0.02  # [m] |grasp| written for the gripper command
 _TCP_TO_HAND = np.diag([1.0, -1.0, -1.0])  # TCP frame (z towards the object) -> hand frame (z towards the arm)
 
 
-def replay(plan: RobotPlan, recon: Reconstruction, engine: str = "mujoco", *, device: str | None = None) -> Replay:
+def replay(plan: RobotPlan, recon: Reconstruction, engine: str = "mujoco", *, device: str | None = None,
+           edit_model=None) -> Replay:
     """Simulate ``plan`` in the scene of ``recon`` and judge the replayed object motion.
 
     Args:
@@ -35,12 +36,16 @@ def replay(plan: RobotPlan, recon: Reconstruction, engine: str = "mujoco", *, de
             (:meth:`RobotPlan.scene`), as ``replay.npz`` records.
         engine: ``"mujoco"`` (default) or ``"newton"``.
         device: Warp device for Newton (``"cpu"``, ``"cuda"``; default: Warp's default).
+        edit_model: MuJoCo only: called with the built ``mujoco.MjModel`` to change it in
+            place before the run (a perturbed mass, friction or object start).
 
     Raises:
         ValueError: an unknown engine, or an action the reconstruction cannot be judged on.
     """
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; valid engines: {', '.join(ENGINES)}")
+    if edit_model is not None and engine != "mujoco":
+        raise ValueError(f"edit_model changes a MuJoCo model; the {engine} replay takes none")
     recon = plan.scene(recon)  # the cuboids the plan was made for (sizes, poses, start): simulated and recorded
     fps = float(recon.fps)
     times = np.arange(plan.start_time, plan.t[-1] + 1e-9, 1.0 / fps)
@@ -48,7 +53,7 @@ def replay(plan: RobotPlan, recon: Reconstruction, engine: str = "mujoco", *, de
     if engine == "mujoco":
         from warpskill.robot import replay_mujoco as backend
 
-        sim = backend.simulate(plan, recon, times)
+        sim = backend.simulate(plan, recon, times, edit_model=edit_model)
     else:
         from warpskill.robot import replay_newton as backend
 

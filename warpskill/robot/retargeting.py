@@ -20,6 +20,13 @@
    demonstration is retried 1.7 and 3 times slower, then joining at the pre-grasp.
 
 A plan that cannot be made raises :class:`PlanError` naming the frame and why, in one line.
+
+With a ``layout`` (:class:`~warpskill.contract.skill.Layout`), the reconstruction's skill
+(:func:`~warpskill.contract.skill.skill_from`) is carried there first
+(:meth:`~warpskill.contract.skill.Skill.apply`) and the plan made for that reconstruction;
+the plan carries the layout, so that the replays simulate it. A layout the Panda cannot
+serve from any base placement (:func:`~warpskill.robot.placement.check_reach`), or one the
+skill cannot be carried to, raises :class:`~warpskill.contract.skill.LayoutError`.
 """
 
 from __future__ import annotations
@@ -30,9 +37,10 @@ import time
 import numpy as np
 
 from warpskill.contract.reconstruction import Reconstruction
+from warpskill.contract.skill import Layout, Skill, skill_from
 from warpskill.robot.grasps import FIT_MARGIN, GraspPose, candidate_poses, rank_poses
 from warpskill.robot.model import HOME_Q, MAX_OPENING, Placement, Scene, make_scene
-from warpskill.robot.placement import rank_placements, reach_excess
+from warpskill.robot.placement import check_reach, rank_placements, reach_excess
 from warpskill.robot.plan import PlanError, RobotPlan
 from warpskill.robot.planner import DT, Planner
 from warpskill.robot.sizes import clear_path, fit_sizes, rest_until
@@ -69,12 +77,14 @@ FULL_PLANS = 3  # placements planned in full (auto), best first
 CARRY_SPEED = 1.7  # [m/s] fastest demonstrated object the robot takes over (the Panda's Cartesian speed limit)
 
 
-def retarget(recon: Reconstruction, *, placement: Placement | str | None = AUTO, object_size=None,
-             static_sizes=None, keep_size: bool = False) -> RobotPlan:
+def retarget(recon: Reconstruction | Skill, *, layout: Layout | None = None, placement: Placement | str | None = AUTO,
+             object_size=None, static_sizes=None, keep_size: bool = False) -> RobotPlan:
     """Plan the Panda motion that performs the reconstructed manipulation.
 
     Args:
-        recon: the reconstruction (hand tip, grasp, object and static cuboids).
+        recon: the reconstruction (hand tip, grasp, object and static cuboids), or its skill.
+        layout: where the skill is to run (the object's start, the static boxes); None: the
+            demonstrated layout (a reconstruction is then planned exactly as given).
         placement: where the robot stands relative to the scene: ``"auto"`` (default, or
             None) searches it; a :class:`Placement` fixes it.
         object_size: (3,) [m] the robot's object (default: the reconstructed cuboid); the
@@ -89,12 +99,19 @@ def retarget(recon: Reconstruction, *, placement: Placement | str | None = AUTO,
     Raises:
         PlanError: no feasible grasp or an unreachable target; the message names the
             reconstruction frame and why.
+        LayoutError: a layout the skill cannot be carried to, or out of the Panda's reach
+            (one line naming why).
         ValueError: sizes of the wrong shape or count.
     """
     started = time.perf_counter()
     auto = placement is None or (isinstance(placement, str) and placement == AUTO)
     if isinstance(placement, str) and not auto:
         raise ValueError(f"placement must be 'auto' or a Placement, got {placement!r}")
+    if isinstance(recon, Skill) or layout is not None:
+        skill = recon if isinstance(recon, Skill) else skill_from(recon)
+        layout = skill.layout if layout is None else layout
+        recon = skill.apply(layout)
+        check_reach(recon, None if auto else placement)
     recon, note = robot_reconstruction(recon, placement=Placement() if auto else placement, object_size=object_size,
                                        static_sizes=static_sizes, keep_size=keep_size)
     task = _task(recon)
@@ -120,7 +137,9 @@ def retarget(recon: Reconstruction, *, placement: Placement | str | None = AUTO,
         plan.object_rot = recon.object_rot.copy()
         plan.static_pos = recon.static_pos.copy()
         plan.static_size = recon.static_size.copy()
+        plan.static_rot = recon.static_rot.copy()
         plan.note = note
+        plan.layout = layout
         plan.planning_time = time.perf_counter() - started
         return plan
     raise errors[0]

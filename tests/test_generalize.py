@@ -1,0 +1,95 @@
+"""Random layouts over the reachable table, the perturbed replay, and a small generalisation run."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from warpskill.contract.reconstruction import Reconstruction
+from warpskill.contract.skill import overlap_depth, skill_from
+from warpskill.export.layouts import HALF_ANGLE, INNER, OUTER, ReachableTable, sample_layouts
+from warpskill.synthetic import make_demonstration
+
+
+def truth(action: str) -> Reconstruction:
+    return Reconstruction(**make_demonstration(action, seed=0, noise="none").truth)
+
+
+@pytest.fixture(scope="module")
+def put_skill():
+    return skill_from(truth("put_next_to"))
+
+
+def test_layouts_lie_in_reach_apart_and_are_seeded(put_skill):
+    table = ReachableTable.of(put_skill)
+    drawn = sample_layouts(put_skill, 12, seed=4, table=table)
+    assert drawn == sample_layouts(put_skill, 12, seed=4, table=table)
+    assert drawn != sample_layouts(put_skill, 12, seed=5, table=table)
+    for layout in drawn:
+        recon = put_skill.apply(layout)
+        radius, bearing = table.polar(recon.object_pos[:, :2])
+        assert np.all((radius >= INNER) & (radius <= OUTER) & (np.abs(bearing) <= HALF_ANGLE))
+        assert table.contains(np.array(layout.statics)[:, :2]).all()
+        assert overlap_depth(recon.object_pos[0], recon.object_rot[0], recon.object_size,
+                             recon.static_pos[0], recon.static_rot[0], recon.static_size[0]) == 0.0
+    yaws = np.array([layout.object[2] for layout in drawn])
+    assert np.all(np.abs(yaws) <= math.pi) and np.ptp(yaws) > math.pi  # any yaw, not one
+
+
+def test_table_samples_cover_the_sector_uniformly():
+    table = ReachableTable(base=np.eye(4))
+    rng = np.random.default_rng(0)
+    points = np.array([table.sample(rng) for _ in range(4000)])
+    radius, bearing = table.polar(points)
+    assert table.contains(points).all()
+    # uniform over the area: the fraction within radius r grows as (r^2 - inner^2) / (outer^2 - inner^2)
+    middle = math.sqrt(0.5 * (INNER**2 + OUTER**2))
+    assert abs(np.mean(radius < middle) - 0.5) < 0.03 and abs(np.mean(bearing > 0) - 0.5) < 0.03
+
+
+def test_perturbation_changes_the_simulated_mass_friction_and_start():
+    pytest.importorskip("mujoco")
+    from robot_support import require_robot
+
+    require_robot("placo", "mujoco")
+    from warpskill.export.perturbation import Perturbation
+    from warpskill.robot import replay_mujoco, retarget
+
+    recon = truth("pick_up")
+    plan = retarget(recon)
+    model = replay_mujoco.build_model(plan, recon)
+    body = model.body("object").id
+    mass, friction, inertia = model.body_mass[body], model.geom_friction[:, 0].copy(), model.body_inertia[body].copy()
+    Perturbation("p", mass_scale=2.0, friction_scale=0.7)(model)
+    assert model.body_mass[body] == pytest.approx(2.0 * mass)
+    np.testing.assert_allclose(model.body_inertia[body], 2.0 * inertia)
+    np.testing.assert_allclose(model.geom_friction[:, 0], 0.7 * friction)
+    # the object starts where the perturbation put it: 1 cm along x, turned 5 deg about z
+    times = np.array([0.0])
+    moved = Perturbation("off", shift=(0.01, 0.0), turn=math.radians(5.0))
+    plain = replay_mujoco.simulate(plan, recon, times)
+    off = replay_mujoco.simulate(plan, recon, times, edit_model=moved)
+    np.testing.assert_allclose(off["object_pos"][0] - plain["object_pos"][0], [0.01, 0.0, 0.0], atol=1e-6)
+    turn = off["object_rot"][0] @ plain["object_rot"][0].T
+    assert math.degrees(math.atan2(turn[1, 0], turn[0, 0])) == pytest.approx(5.0, abs=1e-4)
+
+
+@pytest.mark.slow
+def test_generalize_two_layouts(capsys):
+    from robot_support import require_robot
+
+    require_robot("placo", "mujoco")
+    from warpskill.bench.generalize import bench_generalize
+
+    result = bench_generalize({"pick_up": truth("pick_up")}, layouts=2, seed=1)
+    rows = result["rows"]
+    assert set(rows) == {"planned", "replay mujoco", "robust"}
+    assert all(len(results) == 2 and {a for a, _ in results} == {"pick_up"} for results in rows.values())
+    for k in range(2):  # robust only where it succeeded, succeeded only where it was planned
+        assert rows["robust"][k][1] <= rows["replay mujoco"][k][1] <= rows["planned"][k][1]
+    misses = sum(not ok for results in rows.values() for _, ok in results)
+    assert (misses == 0) == (not result["misses"])
+    out = capsys.readouterr().out
+    assert "| planned" in out and "| robust" in out

@@ -1,0 +1,196 @@
+"""The skill record: what a video teaches relative to the objects, saved, and carried to new layouts."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+
+import numpy as np
+import pytest
+
+from warpskill.contract import Layout, LayoutError, Reconstruction, Skill, SkillError, evaluate, skill_from
+from warpskill.contract.skill import heading
+from warpskill.synthetic import make_demonstration
+
+MOTION_KEYS = ("object_pos", "object_rot", "hand_pos", "hand_rot", "static_pos", "static_rot")
+
+
+@functools.cache
+def truth(action: str, seed: int = 0) -> Reconstruction:
+    """The ground truth of a synthetic demonstration (made once per test run; never modified)."""
+    return Reconstruction(**make_demonstration(action, seed=seed, noise="none").truth)
+
+
+def rot_z(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def moved(layout: Layout, dx: float, dy: float, dyaw: float, *, statics: bool = True) -> Layout:
+    """``layout`` with the object (and the static boxes) shifted by (dx, dy) [m] and turned by dyaw [rad]."""
+    shift = lambda pose: (pose[0] + dx, pose[1] + dy, pose[2] + dyaw)  # noqa: E731
+    return dataclasses.replace(layout, object=shift(layout.object),
+                               statics=tuple(map(shift, layout.statics)) if statics else layout.statics)
+
+
+@pytest.mark.parametrize("action", ["push_left_to_right", "pull_right_to_left", "pick_up", "put_behind", "put_onto"])
+def test_identity_layout_reproduces_the_reconstruction(action):
+    recon = truth(action)
+    skill = skill_from(recon)
+    again = skill.apply(skill.layout)
+    for key in MOTION_KEYS:
+        np.testing.assert_allclose(getattr(again, key), getattr(recon, key), atol=1e-12, err_msg=key)
+    np.testing.assert_array_equal(again.grasped, recon.grasped)
+    assert str(again.action) == action and again.fps == recon.fps
+
+
+def test_save_and_load_round_trip(tmp_path):
+    skill = skill_from(truth("put_behind"))
+    skill.save(tmp_path / "skill.npz")
+    loaded = Skill.load(tmp_path / "skill.npz")
+    for field in dataclasses.fields(Skill):
+        np.testing.assert_array_equal(np.asarray(getattr(loaded, field.name)), np.asarray(getattr(skill, field.name)),
+                                      err_msg=field.name)
+    assert loaded.layout == skill.layout
+    assert loaded.onset == pytest.approx(skill.onset) and math.isfinite(loaded.release)
+
+
+def test_load_names_the_bad_key(tmp_path):
+    skill = skill_from(truth("pick_up"))
+    arrays = {field.name: np.asarray(getattr(skill, field.name)) for field in dataclasses.fields(Skill)}
+    np.savez(tmp_path / "short.npz", **{k: v for k, v in arrays.items() if k != "hand_in_object_pos"})
+    with pytest.raises(SkillError, match="missing key.*hand_in_object_pos"):
+        Skill.load(tmp_path / "short.npz")
+    np.savez(tmp_path / "bad.npz", **{**arrays, "object_motion_pos": arrays["object_motion_pos"][:-1]})
+    with pytest.raises(SkillError, match="object_motion_pos: expected shape"):
+        Skill.load(tmp_path / "bad.npz")
+
+
+@pytest.mark.parametrize("action", ["push_left_to_right", "pull_right_to_left"])
+def test_pull_and_push_keep_their_world_direction(action):
+    recon = truth(action)
+    skill = skill_from(recon)
+    dx, dy, dyaw = 0.07, -0.05, math.radians(35)
+    carried = skill.apply(moved(skill.layout, dx, dy, dyaw))
+    # The path is the demonstrated one, translated: left to right stays left to right.
+    np.testing.assert_allclose(carried.object_pos - carried.object_pos[0], recon.object_pos - recon.object_pos[0],
+                               atol=1e-12)
+    np.testing.assert_allclose(carried.object_pos[0, :2], recon.object_pos[0, :2] + (dx, dy), atol=1e-12)
+    # The object itself is turned about z by the layout's yaw, its motion's rotation kept.
+    np.testing.assert_allclose(carried.object_rot, recon.object_rot @ recon.object_rot[0].T @ rot_z(dyaw)
+                               @ recon.object_rot[0], atol=1e-12)
+    assert heading(carried.object_rot[0]) == pytest.approx(heading(recon.object_rot[0]) + dyaw)
+    assert evaluate(carried).success, evaluate(carried).checks
+
+
+def test_push_contact_follows_the_face_that_faces_the_push():
+    recon = truth("push_left_to_right")
+    skill = skill_from(recon)
+    k_on = int(np.flatnonzero(recon.grasped > 0.5)[0])
+    carried = skill.apply(moved(skill.layout, 0.0, 0.0, math.pi / 2))  # the object's y now spans world x
+    size = recon.object_size
+    before = recon.hand_pos[k_on, 0] - recon.object_pos[k_on, 0]
+    after = carried.hand_pos[k_on, 0] - carried.object_pos[k_on, 0]
+    assert after - before == pytest.approx(-(size[1] - size[0]) / 2)  # the pushed face moved out by half the change
+    np.testing.assert_allclose(carried.hand_rot, recon.hand_rot, atol=1e-12)
+
+
+def test_grasp_rotates_with_the_object():
+    recon = truth("pick_up")
+    skill = skill_from(recon)
+    dyaw = math.radians(60)
+    carried = skill.apply(moved(skill.layout, 0.05, 0.02, dyaw))
+    for k in (0, 20, recon.num_frames - 1):  # the hand in the object's frame is the demonstrated one
+        np.testing.assert_allclose(carried.object_rot[k].T @ (carried.hand_pos[k] - carried.object_pos[k]),
+                                   recon.object_rot[k].T @ (recon.hand_pos[k] - recon.object_pos[k]), atol=1e-12)
+        np.testing.assert_allclose(carried.object_rot[k].T @ carried.hand_rot[k],
+                                   recon.object_rot[k].T @ recon.hand_rot[k], atol=1e-12)
+    lift = recon.object_pos[-1, 2] - recon.object_pos[0, 2]
+    assert carried.object_pos[-1, 2] - carried.object_pos[0, 2] == pytest.approx(lift)
+
+
+def test_put_behind_releases_behind_the_moved_static_box():
+    recon = truth("put_behind")
+    skill = skill_from(recon)
+    layout = skill.layout
+    static = (layout.statics[0][0] + 0.12, layout.statics[0][1] + 0.05, layout.statics[0][2] + math.pi / 2)
+    carried = skill.apply(dataclasses.replace(layout, statics=(static,)))
+    k_off = int(np.flatnonzero(recon.grasped > 0.5)[-1]) + 1
+    demo_offset = recon.object_pos[k_off] - recon.static_pos[0]
+    new_offset = carried.object_pos[k_off] - carried.static_pos[0]
+    assert new_offset[0] == pytest.approx(demo_offset[0])  # the lateral offset (world x) is kept
+    # Behind (world +y): the gap between the box's and the object's world extents is kept.
+    def gap(r: Reconstruction, offset: np.ndarray) -> float:
+        extents = [0.5 * float(np.abs(rot[1]) @ size) for rot, size in
+                   ((r.static_rot[0], r.static_size[0]), (r.object_rot[k_off], r.object_size))]
+        return offset[1] - sum(extents)
+
+    assert gap(carried, new_offset) == pytest.approx(gap(recon, demo_offset))
+    np.testing.assert_allclose(carried.object_pos[0], recon.object_pos[0], atol=1e-12)  # the start stays
+    np.testing.assert_allclose(carried.object_pos[k_off:, 2], recon.object_pos[k_off:, 2], atol=1e-12)
+    assert evaluate(carried).success, evaluate(carried).checks
+
+
+def test_resized_object_keeps_its_bottom():
+    recon = truth("put_onto")
+    skill = skill_from(recon)
+    bigger = tuple(recon.object_size * (1.0, 1.0, 1.4))
+    carried = skill.apply(dataclasses.replace(skill.layout, object_size=bigger))
+    np.testing.assert_allclose(carried.object_corners()[..., 2].min(1), recon.object_corners()[..., 2].min(1),
+                               atol=1e-9)
+
+
+@pytest.mark.parametrize("change, why", [
+    (lambda s: dataclasses.replace(s.layout, statics=()), "places 0 static box.*has 1"),
+    (lambda s: dataclasses.replace(s.layout, object=(*s.layout.statics[0][:2], 0.0)),
+     "object's start overlaps static box 0"),
+])
+def test_impossible_layouts_are_refused_in_one_line(change, why):
+    skill = skill_from(truth("put_next_to"))
+    with pytest.raises(LayoutError, match=why) as error:
+        skill.apply(change(skill))
+    assert "\n" not in str(error.value) and str(error.value).startswith("layout refused: ")
+
+
+def test_overlapping_static_boxes_are_refused():
+    recon = truth("put_next_to")
+    far = recon.static_pos + (0.0, 0.4, 0.0)  # a second box, well behind the scene
+    two = dataclasses.replace(recon, static_pos=np.r_[recon.static_pos, far],
+                              static_rot=np.r_[recon.static_rot, recon.static_rot],
+                              static_size=np.r_[recon.static_size, recon.static_size])
+    skill = skill_from(two)
+    skill.apply(skill.layout)
+    stacked = dataclasses.replace(skill.layout, statics=(skill.layout.statics[0],) * 2)
+    with pytest.raises(LayoutError, match=r"static boxes 0 and 1 overlap \(\d+\.\d cm deep\)"):
+        skill.apply(stacked)
+
+
+def test_a_push_into_a_static_box_is_refused():
+    recon = truth("push_left_to_right")
+    skill = skill_from(recon)
+    end = recon.object_pos[-1]
+    box = dataclasses.replace(recon, static_pos=end[None] + (0.0, 0.0, 0.0), static_rot=np.eye(3)[None],
+                              static_size=np.array([[0.05, 0.05, 0.1]]))
+    with pytest.raises(LayoutError, match="object's path at t = .* overlaps static box 0"):
+        skill_from(box).apply(skill_from(box).layout)
+    assert skill.num_static == 0
+
+
+def test_bad_layouts_and_skills():
+    with pytest.raises(LayoutError, match="object's pose must be finite"):
+        Layout(object=(0.0, math.nan, 0.0))
+    with pytest.raises(LayoutError, match="object size must be 3 positive"):
+        Layout(object=(0.0, 0.0, 0.0), object_size=(0.1, 0.0, 0.1))
+    recon = truth("pick_up")
+    with pytest.raises(SkillError, match="never holds"):
+        skill_from(dataclasses.replace(recon, grasped=np.zeros(recon.num_frames)))
+    with pytest.raises(SkillError, match="action is unknown"):
+        skill_from(dataclasses.replace(recon, action=np.array("")))
+
+
+def test_layout_arrays_round_trip():
+    layout = Layout(object=(0.1, 0.6, 0.3), statics=((-0.1, 0.7, 0.0),), object_size=(0.05, 0.06, 0.07))
+    assert Layout.from_arrays(layout.to_arrays()) == layout
+    assert Layout.from_arrays({}) is None
+    assert "17.2 deg" in layout.describe()

@@ -1,0 +1,482 @@
+"""The skill record: what one video teaches, relative to the objects, and its replay in a new layout.
+
+A :class:`Skill` (``skill.npz`` beside the reconstruction, ``docs/formats.md``) holds the
+action, the timing (grasp signal, contact onset and release [s]), the cuboid sizes, the
+demonstrated layout, and the motion relative to the objects:
+
+- the object's motion relative to its start: the displacement in the world's axes and the
+  rotation in the world's frame (a pull or push keeps its world direction: left to right
+  stays left to right; a pick-up lifts up);
+- the hand relative to the object (approach: to the object at the onset; contact: to the
+  object in that frame; retreat: to the object at the release). Grasp actions (``pick_up``,
+  ``put_*``) hold the object somewhere on it: the hand is kept in the object's own axes,
+  scaled with its size. Pulls and pushes press or hook the face that faces the world
+  direction: the hand is kept in the world's axes at the object's centre, moved out or
+  in with that face;
+- for ``put_*``, the release relative to the (first) static box as seen from the camera:
+  the object centre's offset from the box centre in world axes, along the dominant
+  horizontal world axis as the gap between their world extents.
+
+A :class:`Layout` places the object's start and each static box on the table (x, y, yaw)
+in the reconstruction's world frame; :meth:`Skill.apply` makes the reconstruction of the
+skill there, which retargeting, replays and :func:`~warpskill.contract.evaluation.evaluate`
+consume as any reconstruction.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections.abc import Mapping
+
+import numpy as np
+
+from warpskill.contract.actions import check_action
+from warpskill.contract.npz import read_npz, save_npz_atomic
+from warpskill.contract.reconstruction import Reconstruction
+
+__all__ = ["Layout", "LayoutError", "Skill", "SkillError", "heading", "overlap_depth", "skill_from"]
+
+OVERLAP_TOLERANCE = 0.01
+"""[m] boxes that interpenetrate deeper than this make a layout impossible."""
+
+MIN_TRAVEL = 0.01
+"""[m] a pull or push moving the object less than this has no world direction to keep."""
+
+HELD = 0.5
+"""``grasped`` above this: the hand holds (or touches) the object."""
+
+FIELD_SHAPES: dict[str, tuple[str | int, ...]] = {
+    "action": (),
+    "fps": (),
+    "t": ("N",),
+    "grasp": ("N",),
+    "grasped": ("N",),
+    "onset": (),
+    "release": (),
+    "object_size": (3,),
+    "object_start_pos": (3,),
+    "object_start_rot": (3, 3),
+    "object_motion_pos": ("N", 3),
+    "object_motion_rot": ("N", 3, 3),
+    "hand_in_object_pos": ("N", 3),
+    "hand_in_object_rot": ("N", 3, 3),
+    "release_offset": (3,),
+    "release_gap": (),
+    "static_pos": ("K", 3),
+    "static_rot": ("K", 3, 3),
+    "static_size": ("K", 3),
+    "camera_K": (3, 3),
+    "camera_elevation": (),
+    "camera_height": (),
+    "image_size": (2,),
+    "loss": (),
+}
+"""Every key of ``skill.npz`` and its shape; ``N`` frames and ``K`` static boxes."""
+
+
+class SkillError(ValueError):
+    """A skill file or record that breaks the contract (the message names the key)."""
+
+
+class LayoutError(ValueError):
+    """A layout the skill cannot be carried to; the one-line message says why."""
+
+
+def _rot_z(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def heading(rot: np.ndarray) -> float:
+    """Yaw [rad] of a cuboid of rotation ``rot`` (3, 3): the heading of its local x about z.
+
+    Where local x is near vertical (the cuboid on its side), local y's heading less pi/2.
+    """
+    if math.hypot(rot[0, 0], rot[1, 0]) >= 0.5:
+        return math.atan2(rot[1, 0], rot[0, 0])
+    return math.atan2(rot[1, 1], rot[0, 1]) - math.pi / 2
+
+
+def _pose(value, what: str) -> tuple[float, float, float]:
+    array = np.asarray(value, dtype=float)
+    if array.shape != (3,) or not np.all(np.isfinite(array)):
+        raise LayoutError(f"layout refused: {what} must be finite (x [m], y [m], yaw [rad]), got {value!r}")
+    return tuple(float(v) for v in array)
+
+
+@dataclasses.dataclass(frozen=True)
+class Layout:
+    """Where the skill is to run: the object's start and the static boxes, on the table.
+
+    Attributes:
+        object: (x [m], y [m], yaw [rad]) of the object's start in the reconstruction's world
+            frame; yaw is the heading of the cuboid's local x (:func:`heading`).
+        statics: one (x, y, yaw) per static box, in the reconstruction's order.
+        object_size: (3,) [m] the object's edge lengths; None keeps the demonstrated size.
+
+    Raises:
+        LayoutError: a pose that is not three finite numbers, or a size not three positive ones.
+    """
+
+    object: tuple[float, float, float]
+    statics: tuple[tuple[float, float, float], ...] = ()
+    object_size: tuple[float, float, float] | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "object", _pose(self.object, "the object's pose"))
+        object.__setattr__(self, "statics", tuple(_pose(s, f"static box {k}'s pose")
+                                                  for k, s in enumerate(self.statics)))
+        if self.object_size is not None:
+            size = np.asarray(self.object_size, dtype=float)
+            if size.shape != (3,) or not np.all(np.isfinite(size)) or np.any(size <= 0):
+                raise LayoutError(f"layout refused: the object size must be 3 positive lengths [m], "
+                                  f"got {self.object_size!r}")
+            object.__setattr__(self, "object_size", tuple(float(v) for v in size))
+
+    def to_arrays(self, prefix: str = "layout_") -> dict[str, np.ndarray]:
+        """The layout as ``.npz`` arrays: ``object`` (3,), ``static`` (K, 3), ``object_size`` (3,) if set."""
+        arrays = {prefix + "object": np.array(self.object),
+                  prefix + "static": np.array(self.statics, dtype=float).reshape(-1, 3)}
+        if self.object_size is not None:
+            arrays[prefix + "object_size"] = np.array(self.object_size)
+        return arrays
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "layout_") -> "Layout | None":
+        """The layout written by :meth:`to_arrays`, or None where ``arrays`` holds none."""
+        if prefix + "object" not in arrays:
+            return None
+        size = arrays.get(prefix + "object_size")
+        statics = np.asarray(arrays.get(prefix + "static", np.zeros((0, 3))), dtype=float).reshape(-1, 3)
+        return cls(object=arrays[prefix + "object"], statics=tuple(map(tuple, statics)),
+                   object_size=None if size is None else tuple(size))
+
+    def describe(self) -> str:
+        """The layout in one line (metres, degrees)."""
+        def text(pose):
+            return f"({pose[0]:.3f}, {pose[1]:.3f}, {math.degrees(pose[2]):.1f} deg)"
+        statics = ", ".join(text(s) for s in self.statics) or "none"
+        return f"object at {text(self.object)}, static boxes at {statics}"
+
+
+def _support_extent(rot: np.ndarray, size: np.ndarray, direction: np.ndarray) -> float:
+    """Half the extent [m] of a cuboid (rotation ``rot``, edge lengths ``size``) along ``direction`` (unit)."""
+    return 0.5 * float(np.abs(rot.T @ direction) @ size)
+
+
+def overlap_depth(pos_a, rot_a, size_a, pos_b, rot_b, size_b) -> float:
+    """How deep [m] two cuboids interpenetrate (0 where they are apart): the least overlap over
+    the separating-axis candidates (the 3 + 3 face normals and their 9 cross products)."""
+    axes = [rot_a[:, i] for i in range(3)] + [rot_b[:, i] for i in range(3)]
+    axes += [np.cross(rot_a[:, i], rot_b[:, j]) for i in range(3) for j in range(3)]
+    gap = np.asarray(pos_b, float) - np.asarray(pos_a, float)
+    depth = math.inf
+    for axis in axes:
+        norm = np.linalg.norm(axis)
+        if norm < 1e-9:
+            continue
+        axis = axis / norm
+        reach = _support_extent(rot_a, size_a, axis) + _support_extent(rot_b, size_b, axis)
+        depth = min(depth, reach - abs(float(gap @ axis)))
+        if depth <= 0.0:
+            return 0.0
+    return depth
+
+
+@dataclasses.dataclass
+class Skill:
+    """What a demonstration teaches, relative to the objects (keys and shapes: :data:`FIELD_SHAPES`).
+
+    Build one with :func:`skill_from`; :meth:`apply` carries it to a :class:`Layout`.
+    ``onset`` and ``release`` are the times [s] of the first held frame and of the frame after
+    the last one (``nan``: held to the end). ``release_offset`` (3,) [m] and ``release_gap``
+    [m] are those of the module doc (zeros and 0 for actions other than ``put_*``).
+    """
+
+    action: str
+    fps: float
+    t: np.ndarray
+    grasp: np.ndarray
+    grasped: np.ndarray
+    onset: float
+    release: float
+    object_size: np.ndarray
+    object_start_pos: np.ndarray
+    object_start_rot: np.ndarray
+    object_motion_pos: np.ndarray
+    object_motion_rot: np.ndarray
+    hand_in_object_pos: np.ndarray
+    hand_in_object_rot: np.ndarray
+    release_offset: np.ndarray
+    release_gap: float
+    static_pos: np.ndarray
+    static_rot: np.ndarray
+    static_size: np.ndarray
+    camera_K: np.ndarray
+    camera_elevation: float
+    camera_height: float
+    image_size: np.ndarray
+    loss: float
+
+    def __post_init__(self) -> None:
+        _check_fields({name: getattr(self, name) for name in FIELD_SHAPES})
+        self.action = check_action(str(self.action))
+
+    @property
+    def num_frames(self) -> int:
+        """N, the number of frames."""
+        return self.t.shape[0]
+
+    @property
+    def num_static(self) -> int:
+        """K, the number of static boxes the skill expects."""
+        return self.static_pos.shape[0]
+
+    @property
+    def layout(self) -> Layout:
+        """The demonstrated layout: :meth:`apply` of it reproduces the reconstruction."""
+        return Layout(object=(*self.object_start_pos[:2], heading(self.object_start_rot)),
+                      statics=tuple((*p[:2], heading(R)) for p, R in zip(self.static_pos, self.static_rot)))
+
+    def frames(self) -> tuple[int, int | None]:
+        """The onset frame and the release frame (None: held to the end)."""
+        k_on = int(round(self.onset * self.fps))
+        return k_on, None if not np.isfinite(self.release) else int(round(self.release * self.fps))
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write ``skill.npz`` atomically (every key of :data:`FIELD_SHAPES`)."""
+        save_npz_atomic(path, {name: np.asarray(getattr(self, name)) for name in FIELD_SHAPES})
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "Skill":
+        """Read and check a ``skill.npz``.
+
+        Raises:
+            SkillError: naming the file and the key, for a missing, unknown or malformed key.
+            FileNotFoundError: ``path`` does not exist.
+        """
+        arrays = read_npz(path, SkillError)
+        missing = [name for name in FIELD_SHAPES if name not in arrays]
+        unknown = sorted(set(arrays) - set(FIELD_SHAPES))
+        if missing or unknown:
+            what = (f"missing key(s) {', '.join(missing)}" if missing else f"unknown key(s) {', '.join(unknown)}")
+            raise SkillError(f"{path}: not a skill file, {what}")
+        try:
+            return cls(**{name: _scalar(arrays[name]) for name in FIELD_SHAPES})
+        except ValueError as error:
+            raise SkillError(f"{path}: {error}") from None
+
+    def apply(self, layout: Layout) -> Reconstruction:
+        """The reconstruction of the skill performed in ``layout`` (see the module doc).
+
+        Raises:
+            LayoutError: a static box count other than the skill's, boxes that overlap at
+                the start, or an object path that runs into a static box.
+        """
+        if len(layout.statics) != self.num_static:
+            raise LayoutError(f"layout refused: it places {len(layout.statics)} static box(es), the "
+                              f"{self.action} skill has {self.num_static}")
+        static_pos, static_rot = self._statics(layout)
+        size = self.object_size if layout.object_size is None else np.asarray(layout.object_size)
+        object_pos, object_rot = self._object_path(layout, size, static_pos, static_rot)
+        hand_pos, hand_rot = self._hand_path(object_pos, object_rot, size)
+        recon = Reconstruction(
+            fps=self.fps, t=self.t, hand_pos=hand_pos, hand_rot=hand_rot, grasp=self.grasp, grasped=self.grasped,
+            object_pos=object_pos, object_rot=object_rot, object_size=size, static_pos=static_pos,
+            static_rot=static_rot, static_size=self.static_size, camera_K=self.camera_K,
+            camera_elevation=self.camera_elevation, camera_height=self.camera_height, image_size=self.image_size,
+            action=self.action, loss=self.loss)
+        _check_overlaps(recon)
+        return recon
+
+    def _statics(self, layout: Layout) -> tuple[np.ndarray, np.ndarray]:
+        """(K, 3) centres and (K, 3, 3) rotations of the static boxes in ``layout`` (heights kept)."""
+        pos = self.static_pos.copy()
+        rot = self.static_rot.copy()
+        for k, (x, y, yaw) in enumerate(layout.statics):
+            pos[k, :2] = x, y
+            rot[k] = _rot_z(yaw - heading(self.static_rot[k])) @ self.static_rot[k]
+        return pos, rot
+
+    def _object_path(self, layout: Layout, size: np.ndarray, static_pos: np.ndarray,
+                     static_rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) centres and (N, 3, 3) rotations of the object in ``layout``.
+
+        The demonstrated motion from the new start, resting as deep as before (a resized
+        object keeps its bottom's heights); a ``put_*`` path bends, with the progress along
+        it, to end at the release relative to the static box.
+        """
+        x, y, yaw = layout.object
+        start_rot = _rot_z(yaw - heading(self.object_start_rot)) @ self.object_start_rot
+        rot = self.object_motion_rot @ start_rot
+        start = np.array([x, y, self.object_start_pos[2]])
+        up = np.array([0.0, 0.0, 1.0])
+        start[2] += _support_extent(start_rot, size, up) - _support_extent(self.object_start_rot, self.object_size, up)
+        pos = start + self.object_motion_pos
+        k_on, k_off = self.frames()
+        if self.action.startswith("put_") and k_off is not None and self.num_static:
+            target = self._release_point(pos[k_off], rot[k_off], size, static_pos[0], static_rot[0])
+            pos += _progress(self.object_motion_pos, k_on, k_off)[:, None] * (target - pos[k_off])
+        return pos, rot
+
+    def _release_point(self, where: np.ndarray, rot: np.ndarray, size: np.ndarray, static_pos: np.ndarray,
+                       static_rot: np.ndarray) -> np.ndarray:
+        """(3,) the release centre relative to the static box: its height ``where[2]`` kept."""
+        offset = self.release_offset.copy()
+        if self.action != "put_onto":  # beside the box: the gap between the world extents is kept
+            axis = int(np.argmax(np.abs(offset[:2])))
+            direction = np.eye(3)[axis]
+            reach = (_support_extent(static_rot, self.static_size[0], direction)
+                     + _support_extent(rot, size, direction))
+            offset[axis] = math.copysign(reach + self.release_gap, offset[axis])
+        target = static_pos + offset
+        target[2] = where[2]
+        return target
+
+    def _hand_path(self, object_pos: np.ndarray, object_rot: np.ndarray,
+                   size: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) hand tips and (N, 3, 3) hand frames relative to the object of the new layout."""
+        ref = _reference_frames(self.grasped, *self.frames())
+        ref_pos, ref_rot = object_pos[ref], object_rot[ref]
+        if not _world_directed(self.action):
+            local = self.hand_in_object_pos * (size / self.object_size)
+            return ref_pos + np.einsum("nij,nj->ni", ref_rot, local), ref_rot @ self.hand_in_object_rot
+        offset = self.hand_in_object_pos.copy()
+        direction = _travel_direction(self.object_motion_pos, *self.frames())
+        if direction is not None:  # the hand stays on the face that faces the world direction
+            demo_rot = self.object_motion_rot[ref] @ self.object_start_rot
+            for k in range(self.num_frames):
+                side = math.copysign(1.0, float(offset[k] @ direction))
+                moved = (_support_extent(ref_rot[k], size, direction)
+                         - _support_extent(demo_rot[k], self.object_size, direction))
+                offset[k] += side * moved * direction
+        return ref_pos + offset, self.hand_in_object_rot.copy()
+
+
+def _scalar(array: np.ndarray):
+    """A 0-d array as a str or float, others as they are."""
+    if array.ndim == 0:
+        return str(array) if array.dtype.kind == "U" else float(array)
+    return array
+
+
+def _check_fields(fields: Mapping[str, object]) -> None:
+    """Check every key's shape (``N``, ``K`` bound by the first key that has them) and finiteness."""
+    dims: dict[str, int] = {}
+    for name, template in FIELD_SHAPES.items():
+        if name == "action":
+            continue
+        array = np.asarray(fields[name])
+        if array.dtype.kind not in "biuf":
+            raise SkillError(f"{name}: expected numbers, got dtype {array.dtype}")
+        shape_ok = array.ndim == len(template)
+        for size, want in zip(array.shape, template):
+            if isinstance(want, str):
+                shape_ok = shape_ok and dims.setdefault(want, size) == size
+            else:
+                shape_ok = shape_ok and size == want
+        if not shape_ok:
+            raise SkillError(f"{name}: expected shape {template}, got {array.shape} (N = {dims.get('N')}, "
+                             f"K = {dims.get('K')})")
+        if name not in ("release",) and not np.all(np.isfinite(array)):
+            raise SkillError(f"{name}: contains NaN or inf")
+
+
+def _world_directed(action: str) -> bool:
+    """Whether the action keeps its world direction (pulls and pushes)."""
+    return action.startswith(("pull_", "push_"))
+
+
+def _held_span(grasped: np.ndarray) -> tuple[int, int | None]:
+    """The first held frame and the frame after the last held one (None: held to the end)."""
+    held = np.flatnonzero(grasped > HELD)
+    if len(held) == 0:
+        raise SkillError("grasped: the hand never holds or touches the object (grasped <= 0.5 in every frame)")
+    k_off = int(held[-1]) + 1
+    return int(held[0]), k_off if k_off < len(grasped) else None
+
+
+def _reference_frames(grasped: np.ndarray, k_on: int, k_off: int | None) -> np.ndarray:
+    """(N,) the object frame each hand sample is relative to: the onset before it, the release after it."""
+    ref = np.arange(len(grasped))
+    ref[:k_on] = k_on
+    if k_off is not None:
+        ref[k_off:] = k_off
+    return ref
+
+
+def _travel_direction(motion_pos: np.ndarray, k_on: int, k_off: int | None) -> np.ndarray | None:
+    """(3,) the unit horizontal direction the object travels while held; None below :data:`MIN_TRAVEL`."""
+    travel = motion_pos[k_off if k_off is not None else -1] - motion_pos[k_on]
+    travel[2] = 0.0
+    length = float(np.linalg.norm(travel))
+    return travel / length if length >= MIN_TRAVEL else None
+
+
+def _progress(motion_pos: np.ndarray, k_on: int, k_off: int) -> np.ndarray:
+    """(N,) 0 until the onset, the fraction of the held path travelled, 1 from the release.
+
+    By path length; by time where the object barely moves.
+    """
+    steps = np.linalg.norm(np.diff(motion_pos[k_on:k_off + 1], axis=0), axis=1)
+    if steps.sum() < 1e-6:
+        steps = np.ones_like(steps)
+    progress = np.zeros(len(motion_pos))
+    progress[k_on + 1:k_off + 1] = np.cumsum(steps) / steps.sum()
+    progress[k_off:] = 1.0
+    return progress
+
+
+def _check_overlaps(recon: Reconstruction) -> None:
+    """Refuse boxes that interpenetrate: static boxes with each other, the object with one along its path."""
+    statics = list(zip(recon.static_pos, recon.static_rot, recon.static_size))
+    for i in range(len(statics)):
+        for j in range(i + 1, len(statics)):
+            depth = overlap_depth(*statics[i], *statics[j])
+            if depth > OVERLAP_TOLERANCE:
+                raise LayoutError(f"layout refused: static boxes {i} and {j} overlap ({100 * depth:.1f} cm deep)")
+    for k, static in enumerate(statics):
+        for f in range(recon.num_frames):
+            depth = overlap_depth(recon.object_pos[f], recon.object_rot[f], recon.object_size, *static)
+            if depth > OVERLAP_TOLERANCE:
+                where = "start" if f == 0 else f"path at t = {recon.t[f]:.2f} s"
+                raise LayoutError(f"layout refused: the object's {where} overlaps static box {k} "
+                                  f"({100 * depth:.1f} cm deep)")
+
+
+def skill_from(recon: Reconstruction) -> Skill:
+    """The skill a reconstruction teaches (see the module doc).
+
+    Raises:
+        SkillError: an unknown action, or a hand that never holds or touches the object.
+    """
+    if not str(recon.action):
+        raise SkillError("action: the reconstruction's action is unknown; a skill needs one")
+    action = check_action(str(recon.action))
+    k_on, k_off = _held_span(recon.grasped)
+    ref = _reference_frames(recon.grasped, k_on, k_off)
+    start_pos, start_rot = recon.object_pos[0], recon.object_rot[0]
+    ref_pos, ref_rot = recon.object_pos[ref], recon.object_rot[ref]
+    if _world_directed(action):
+        hand_pos, hand_rot = recon.hand_pos - ref_pos, recon.hand_rot.copy()
+    else:
+        hand_pos = np.einsum("nji,nj->ni", ref_rot, recon.hand_pos - ref_pos)
+        hand_rot = np.swapaxes(ref_rot, 1, 2) @ recon.hand_rot
+    offset, gap = np.zeros(3), 0.0
+    if action.startswith("put_") and recon.num_static and k_off is not None:
+        offset = recon.object_pos[k_off] - recon.static_pos[0]
+        axis = np.eye(3)[int(np.argmax(np.abs(offset[:2])))]
+        gap = abs(float(offset @ axis)) - (_support_extent(recon.static_rot[0], recon.static_size[0], axis)
+                                           + _support_extent(recon.object_rot[k_off], recon.object_size, axis))
+    fps = float(recon.fps)
+    return Skill(
+        action=action, fps=fps, t=recon.t.copy(), grasp=recon.grasp.copy(), grasped=recon.grasped.copy(),
+        onset=k_on / fps, release=math.nan if k_off is None else k_off / fps, object_size=recon.object_size.copy(),
+        object_start_pos=start_pos.copy(), object_start_rot=start_rot.copy(),
+        object_motion_pos=recon.object_pos - start_pos, object_motion_rot=recon.object_rot @ start_rot.T,
+        hand_in_object_pos=hand_pos, hand_in_object_rot=hand_rot, release_offset=offset, release_gap=gap,
+        static_pos=recon.static_pos.copy(), static_rot=recon.static_rot.copy(), static_size=recon.static_size.copy(),
+        camera_K=recon.camera_K.copy(), camera_elevation=float(recon.camera_elevation),
+        camera_height=float(recon.camera_height), image_size=recon.image_size.copy(), loss=float(recon.loss))

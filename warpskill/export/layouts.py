@@ -1,0 +1,119 @@
+"""Random layouts of a skill over the Panda's reachable table: a documented, seeded distribution.
+
+:class:`ReachableTable` is the part of the table the robot reaches comfortably, an annular
+sector in front of its base: distances :data:`INNER` .. :data:`OUTER` from the base's
+vertical axis, bearings within :data:`HALF_ANGLE` of its forward axis. The base is where the
+robot stands for the demonstrated layout (:func:`~warpskill.robot.model.make_scene`'s
+default placement: the scene centre 0.5 m ahead, the robot facing world +y).
+
+:func:`layouts` draws, independently per layout:
+
+- the object's start: uniform over the sector's area, yaw uniform in [-pi, pi);
+- each static box: uniform over the sector's area, yaw uniform in [-pi, pi);
+
+and keeps a draw only where the action still makes sense: the boxes' start footprints do not
+touch (:func:`~warpskill.contract.skill.overlap_depth` 0), :meth:`Skill.apply` accepts it
+(no path through a static box) and the object's whole path, the ``put_*`` release beside or
+on the box included, stays on the sector.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterator
+
+import numpy as np
+
+from warpskill.contract.skill import Layout, LayoutError, Skill, overlap_depth
+from warpskill.robot.model import make_scene
+
+__all__ = ["HALF_ANGLE", "INNER", "OUTER", "ReachableTable", "layouts", "sample_layouts"]
+
+INNER = 0.35  # [m] nearest reach from the base's axis (closer, the arm folds onto itself)
+OUTER = 0.70  # [m] farthest comfortable reach at table height (the Panda's limit is about 0.85 m)
+HALF_ANGLE = math.radians(50.0)  # [rad] bearings either side of the robot's forward axis
+MAX_DRAWS = 1000  # draws per layout before giving up
+
+
+@dataclasses.dataclass(frozen=True)
+class ReachableTable:
+    """The annular sector of the table in front of a robot base (see the module doc).
+
+    Attributes:
+        base: (4, 4) pose of the robot base in the world.
+        inner, outer: [m] radii of the sector.
+        half_angle: [rad] half its opening.
+    """
+
+    base: np.ndarray
+    inner: float = INNER
+    outer: float = OUTER
+    half_angle: float = HALF_ANGLE
+
+    @classmethod
+    def of(cls, skill: Skill) -> "ReachableTable":
+        """The sector in front of the robot placed for the skill's demonstrated layout."""
+        return cls(base=make_scene(skill.apply(skill.layout)).base)
+
+    def polar(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distances [m] and bearings [rad] of world points (..., 2) from the base."""
+        local = (np.asarray(xy, float) - self.base[:2, 3]) @ self.base[:2, :2]
+        return np.hypot(local[..., 0], local[..., 1]), np.arctan2(local[..., 1], local[..., 0])
+
+    def contains(self, xy: np.ndarray) -> np.ndarray:
+        """Whether world points (..., 2) [m] lie on the sector."""
+        radius, bearing = self.polar(xy)
+        return (radius >= self.inner) & (radius <= self.outer) & (np.abs(bearing) <= self.half_angle)
+
+    def sample(self, rng: np.random.Generator) -> np.ndarray:
+        """(2,) a world point uniform over the sector's area."""
+        radius = math.sqrt(rng.uniform(self.inner**2, self.outer**2))
+        bearing = rng.uniform(-self.half_angle, self.half_angle)
+        local = radius * np.array([math.cos(bearing), math.sin(bearing)])
+        return self.base[:2, :2] @ local + self.base[:2, 3]
+
+
+def layouts(skill: Skill, *, seed: int = 0, table: ReachableTable | None = None) -> Iterator[Layout]:
+    """Endless random layouts of ``skill`` (the module doc's distribution), reproducible by ``seed``.
+
+    Raises:
+        LayoutError: :data:`MAX_DRAWS` draws in a row were all refused (a skill whose path
+            does not fit on the sector).
+    """
+    table = table or ReachableTable.of(skill)
+    rng = np.random.default_rng(seed)
+    while True:
+        for _ in range(MAX_DRAWS):
+            layout = _draw(skill, table, rng)
+            if _sensible(skill, layout, table):
+                yield layout
+                break
+        else:
+            raise LayoutError(f"no layout of the {skill.action} skill fits the reachable table "
+                              f"in {MAX_DRAWS} draws")
+
+
+def sample_layouts(skill: Skill, count: int, *, seed: int = 0, table: ReachableTable | None = None) -> list[Layout]:
+    """The first ``count`` layouts of :func:`layouts`."""
+    draws = layouts(skill, seed=seed, table=table)
+    return [next(draws) for _ in range(count)]
+
+
+def _draw(skill: Skill, table: ReachableTable, rng: np.random.Generator) -> Layout:
+    def pose():
+        return (*table.sample(rng), rng.uniform(-math.pi, math.pi))
+
+    return Layout(object=pose(), statics=tuple(pose() for _ in range(skill.num_static)))
+
+
+def _sensible(skill: Skill, layout: Layout, table: ReachableTable) -> bool:
+    """Whether the start footprints are apart, the skill applies and its object path stays on the table."""
+    try:
+        recon = skill.apply(layout)
+    except LayoutError:
+        return False
+    boxes = [(recon.object_pos[0], recon.object_rot[0], recon.object_size),
+             *zip(recon.static_pos, recon.static_rot, recon.static_size)]
+    apart = all(overlap_depth(*boxes[i], *boxes[j]) == 0.0 for i in range(len(boxes)) for j in range(i + 1, len(boxes)))
+    return apart and bool(np.all(table.contains(recon.object_pos[:, :2])))
