@@ -6,9 +6,8 @@ object) in a JSON file; ``approach``, ``action``, ``leave`` phases at 12 fps as 
 inclusive frame ranges (``-`` = absent) in a CSV; action names in another CSV.
 
 **Box to mask.** Each box becomes the ellipse inscribed in it (:data:`BOX_SHAPES`). On the
-model's own silhouettes (synthetic demonstrations, noise-free, every action, 2 seeds) the
-inscribed ellipse and the full box fit about equally well (mean IoU with the true mask:
-object 0.73 vs 0.76, static 0.81 vs 0.81, hand 0.53 vs 0.54), while most real objects here
+model's own cuboid and cylinder silhouettes the inscribed ellipse and the full box match
+the true mask about equally well (docs/results-history.md), while most real objects here
 (plate, mug, cup, bowl, glove, the hand itself) are rounded, which the ellipse follows and
 the box's corners overshoot.
 
@@ -25,7 +24,10 @@ the box's corners overshoot.
   are "not visible" (empty mask); frames absent from the file are handled the same way;
 - boxes are clipped to the image; empty or degenerate boxes, and boxes with a NaN
   coordinate, are dropped;
-- the video has N = max(last annotated frame, end of the last phase) frames.
+- the demonstration ends at the last frame the annotations list: frames after it, even
+  where the phases go on, carry no evidence (an annotation that stops while the hand holds
+  the object up does not say the object fell), so they are left out and the phases
+  clipped to it; absent frames before it are frames without boxes.
 """
 
 from __future__ import annotations
@@ -131,8 +133,9 @@ def something_else_demonstration(
         image_size: (H, W) of the frames the boxes are in [px].
 
     Returns:
-        The demonstration (at :data:`FPS`, the default intrinsics) and the notes: one
-        sentence per deliberate choice about messy annotations (see the module docstring).
+        The demonstration (at :data:`FPS`, the default intrinsics, its ``object_noun`` from
+        :func:`object_noun`) and the notes: one sentence per deliberate choice about messy
+        annotations (see the module docstring).
 
     Raises:
         DemonstrationError: naming the video: no annotations, no phases or no ``action``
@@ -148,8 +151,7 @@ def something_else_demonstration(
         raise DemonstrationError(f"{where}: no action phase, so no contact signal")
     notes: list[str] = []
     tracks = _tracks(video, where, notes)
-    last_phase = max(span[1] for span in video.phases.values() if span is not None)
-    num_frames = max(max((max(track) for track in tracks.values() if track), default=0), last_phase)
+    num_frames = _annotated_length(video, notes)
     _note_absent_frames(video, num_frames, notes)
     for role in ("hand", "object 0"):
         if not tracks.get(role):
@@ -168,11 +170,27 @@ def something_else_demonstration(
     static_mask = np.stack([masks[role] for role in statics]) if statics else None
     try:
         demo = Demonstration.from_arrays(
-            masks["hand"], masks["object 0"], contact, FPS, static_mask=static_mask, action=video.action
+            masks["hand"], masks["object 0"], contact, FPS, static_mask=static_mask, action=video.action,
+            object_noun=object_noun(video),
         )
     except DemonstrationError as exc:
         raise DemonstrationError(f"{where}: {exc}") from None
     return demo, notes
+
+
+def object_noun(video: SomethingElseVideo) -> str | None:
+    """What the manipulated object is called: the first placeholder (the noun ``object 0``
+    stands for), else the ``category`` of an ``object 0`` box; None when neither is given."""
+    for entry in video.frames:
+        placeholders = entry.get("gt_placeholders") if isinstance(entry, dict) else None
+        if placeholders and isinstance(placeholders[0], str) and placeholders[0].strip():
+            return placeholders[0].strip()
+    for entry in video.frames:
+        for label in entry.get("labels", []) if isinstance(entry, dict) else []:
+            category = label.get("category") if isinstance(label, dict) else None
+            if label.get("gt_annotation") == "object 0" and isinstance(category, str) and category.strip():
+                return category.strip()
+    return None
 
 
 def box_masks(boxes: np.ndarray, image_size: tuple[int, int], shape: str = "ellipse") -> np.ndarray:
@@ -200,7 +218,7 @@ def _tracks(video: SomethingElseVideo, where: str, notes: list[str]) -> dict[str
     candidates: dict[str, dict[int, list[np.ndarray]]] = {}
     for index, entry in enumerate(video.frames):
         try:
-            frame = int(_FRAME_NAME.search(entry["name"]).group(1))
+            frame = _frame_number(entry)
             if frame < 1:
                 raise DemonstrationError(f"{where}: frame entry {index}: frame number {frame} in {entry['name']!r}, "
                                          "but frames are numbered from 1")
@@ -291,9 +309,24 @@ def _fill_gaps(track: dict[int, np.ndarray], num_frames: int, role: str, notes: 
     return boxes
 
 
+def _annotated_length(video: SomethingElseVideo, notes: list[str]) -> int:
+    """N, the last frame the annotations list (1-based); notes phase frames cut off after it."""
+    num_frames = max(_frame_number(entry) for entry in video.frames)
+    last_phase = max(span[1] for span in video.phases.values() if span is not None)
+    if last_phase > num_frames:
+        notes.append(f"frame(s) {_ranges(list(range(num_frames + 1, last_phase + 1)))} of the phases are after the "
+                     f"annotations' last frame {num_frames}: the demonstration ends there")
+    return num_frames
+
+
+def _frame_number(entry: dict) -> int:
+    """The 1-based frame number of a JSON frame entry (its ``name``, ``<video_id>/<frame>.jpg``)."""
+    return int(_FRAME_NAME.search(entry["name"]).group(1))
+
+
 def _note_absent_frames(video: SomethingElseVideo, num_frames: int, notes: list[str]) -> None:
     """Note the frames of 1..N that have no entry in the annotations."""
-    listed = {int(_FRAME_NAME.search(entry["name"]).group(1)) for entry in video.frames}
+    listed = {_frame_number(entry) for entry in video.frames}
     absent = sorted(set(range(1, num_frames + 1)) - listed)
     if absent:
         notes.append(f"frame(s) {_ranges(absent)} not in the annotations: treated as frames without boxes")

@@ -57,7 +57,7 @@ def read_label_images(
         contact: (N,) bool contact signal; or the path of a detections CSV
             (:func:`warpskill.data.contact.read_detections`); None estimates it from the masks.
             Detections and estimates go through :func:`warpskill.data.contact.filter_contact`.
-        camera_K: (3, 3) intrinsics [px]; None for the default of FORMATS.md.
+        camera_K: (3, 3) intrinsics [px]; None for the default of docs/formats.md.
         action: action name, if known.
         min_area_fraction: speck threshold of :func:`warpskill.data.masks.clean_masks`.
 

@@ -81,7 +81,7 @@ def read_recording(
         action: the action shown, one of :data:`warpskill.ACTIONS`.
         fps: frame rate [1/s]; None takes the video's.
         intrinsics: (fx, fy, cx, cy) [px] of the video's frames; None for the default of
-            ``FORMATS.md`` (80 x 60 deg field of view).
+            ``docs/formats.md`` (80 x 60 deg field of view).
         frame: the annotated frame of ``polygons``, overriding the file's (0-based).
 
     Returns:

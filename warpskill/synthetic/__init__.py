@@ -9,7 +9,7 @@ by a frame, or per-frame boxes as annotators draw them (:mod:`.generator`). May 
 engine, the contract and the data layer's box masks; never the optimiser.
 """
 
-from warpskill.synthetic.generator import INPUTS, make_demonstration
+from warpskill.synthetic.generator import INPUTS, SCENARIOS, make_demonstration, real_scenarios
 from warpskill.synthetic.scripts import (
     GRASP_LEVEL,
     PICK_UP_ENDINGS,
@@ -17,16 +17,19 @@ from warpskill.synthetic.scripts import (
     scripted_inputs,
     scripted_scene,
 )
-from warpskill.synthetic.spoil import NOISE_LEVELS, Noise
+from warpskill.synthetic.spoil import NOISE_LEVELS, SPOILERS, Noise
 
 __all__ = [
     "GRASP_LEVEL",
     "INPUTS",
     "NOISE_LEVELS",
     "PICK_UP_ENDINGS",
+    "SCENARIOS",
+    "SPOILERS",
     "TIP_DEPTH",
     "Noise",
     "make_demonstration",
+    "real_scenarios",
     "scripted_inputs",
     "scripted_scene",
 ]

@@ -10,6 +10,8 @@ import numpy as np
 from warpskill.contract.actions import ACTIONS, check_action
 from warpskill.contract.camera import Intrinsics
 from warpskill.contract.demonstration import Demonstration
+from warpskill.contract.reconstruction import FIELD_SHAPES
+from warpskill.data.box_annotations import something_else_demonstration
 from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.raycast import raycast_masks
 from warpskill.engine.simulation import simulate
@@ -19,20 +21,51 @@ from warpskill.synthetic.scripts import (
     make_script,
     scripted_inputs,
     static_rotations,
+    tall_thin_size,
 )
 from warpskill.synthetic.spoil import (
     NOISE_LEVELS,
+    SPOILERS,
     Noise,
+    as_annotations,
     box_channels,
     noisy_channels,
     noisy_contact,
     phase_contact,
+    visible_boxes,
 )
 
 INPUTS = ("masks", "boxes")
 """What a synthetic demonstration's masks are: the true silhouettes spoiled (``"masks"``), or
 the ellipses inscribed in per-frame boxes of them, as the Something-Else reader makes them
 (``"boxes"``; contact from annotator-like phases, scenes with the real videos' situations)."""
+
+
+SCENARIOS = ("none", "real")
+"""Which situations a ``"boxes"`` demonstration adds: the default ones only, or also the held-out
+real videos' (:func:`real_scenarios`)."""
+
+REAL_SCENARIOS = {
+    "stops_early": ("pick_up",),
+    "enters_view": ("put_behind", "put_in_front_of", "put_next_to", "put_onto"),
+    "static_cut_by_frame": ("put_behind", "put_in_front_of", "put_next_to", "put_onto"),
+    "hand_partly_seen": ACTIONS,
+    "tall_thin": ("pick_up", "put_behind", "put_in_front_of", "put_next_to", "put_onto"),
+}
+"""Each real situation and the actions it is mixed into (``tall_thin``: the object is tall
+and thin, :data:`~warpskill.synthetic.scripts.TALL_THIN`; the others: :data:`SPOILERS`)."""
+
+MIX_RATE = 0.3
+"""Probability of each applicable situation besides the one the seed picks."""
+
+
+def real_scenarios(action: str, seed: int) -> tuple[str, ...]:
+    """The real situations of one demonstration: the applicable one at ``seed`` modulo their
+    number, and each other applicable one with probability :data:`MIX_RATE` (seeded)."""
+    applicable = [name for name, actions in REAL_SCENARIOS.items() if action in actions]
+    rng = np.random.default_rng([seed, ACTIONS.index(action), 2])
+    draws = rng.random(len(applicable))
+    return tuple(name for i, name in enumerate(applicable) if i == seed % len(applicable) or draws[i] < MIX_RATE)
 
 
 def make_demonstration(
@@ -44,6 +77,7 @@ def make_demonstration(
     fps: float = 12.0,
     duration: float = 4.0,
     input: str = "masks",
+    scenarios: str = "none",
 ) -> Demonstration:
     """A synthetic demonstration of ``action`` with its ground truth in ``demo.truth``.
 
@@ -63,10 +97,20 @@ def make_demonstration(
             the real videos' situations (:data:`PICK_UP_ENDINGS`, a hand that enters
             through the border, wide static boxes cut by the frame; a put behind leaves
             the moved object partly or wholly hidden by the static box).
+        scenarios: one of :data:`SCENARIOS` (``input="boxes"`` only). ``"real"`` mixes in
+            the held-out real videos' situations, chosen by :func:`real_scenarios` (a
+            deterministic function of action and seed): the spoilers of
+            :data:`warpskill.synthetic.spoil.SPOILERS` and tall thin objects; the boxes and
+            phases then reach the demonstration through the real reader
+            (:func:`~warpskill.data.box_annotations.something_else_demonstration`).
     """
     check_action(action)
     if input not in INPUTS:
         raise ValueError(f"input: expected one of {INPUTS}, got {input!r}")
+    if scenarios not in SCENARIOS or (scenarios != "none" and input != "boxes"):
+        raise ValueError(f"scenarios: expected one of {SCENARIOS} (other than 'none' only with input='boxes'), "
+                         f"got {scenarios!r} with input={input!r}")
+    chosen = real_scenarios(action, seed) if scenarios == "real" else ()
     noise = NOISE_LEVELS[noise] if isinstance(noise, str) else noise
     rng = np.random.default_rng([seed, ACTIONS.index(action)])
     boxes = input == "boxes"
@@ -74,6 +118,8 @@ def make_demonstration(
     intrinsics = Intrinsics.default(*image_size)
     for _ in range(50):
         variant = draw_variant(action, seed, variant_rng) if boxes else None
+        if "tall_thin" in chosen:
+            variant = replace(variant, object_size=tall_thin_size(variant_rng))
         script = make_script(action, rng, duration, variant)
         truth = _simulate(script, fps, duration)
         masks = _render(truth, intrinsics)
@@ -86,6 +132,8 @@ def make_demonstration(
     truth["image_size"] = np.array(image_size)
     if boxes:
         contact = noisy_contact(phase_contact(script, truth, masks), replace(noise, contact_flips=0), rng)
+        if chosen:
+            return _annotated(visible_boxes(masks, noise, rng), contact, chosen, rng, fps, action, truth)
         hand, obj, static = box_channels(masks, noise, rng)
     else:
         contact = noisy_contact(truth["grasped"] > 0.5, noise, rng)
@@ -93,6 +141,23 @@ def make_demonstration(
     return Demonstration.from_arrays(
         hand, obj, contact, fps, static_mask=static, camera_K=intrinsics.K, action=action, truth=truth
     )
+
+
+def _annotated(boxes, contact, chosen, rng, fps: float, action: str, truth: dict) -> Demonstration:
+    """The spoilers in ``chosen`` applied to the boxes (C, N, 4) and action phase (N,), read back
+    through the Something-Else reader, with the ground truth attached."""
+    image_size = tuple(int(v) for v in truth["image_size"])
+    for name in chosen:
+        if name in SPOILERS:
+            boxes, contact = SPOILERS[name](boxes, contact, rng, image_size)
+    demo, _ = something_else_demonstration(as_annotations(boxes, contact, action=action), image_size=image_size)
+    return replace(demo, fps=fps, truth=_first_frames(truth, demo.num_frames))
+
+
+def _first_frames(truth: dict, n: int) -> dict:
+    """The ground truth of the first ``n`` frames (the reader ends a demonstration where its
+    annotations stop)."""
+    return {key: value[:n] if FIELD_SHAPES[key][:1] == ("N",) else value for key, value in truth.items()}
 
 
 def _simulate(script: Script, fps: float, duration: float) -> dict[str, np.ndarray]:

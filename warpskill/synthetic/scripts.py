@@ -47,6 +47,16 @@ class Variant:
     ending: str = "held"  # pick_up: one of PICK_UP_ENDINGS
     far_start: bool = False  # the hand enters (and leaves) through the image border
     wide_static: float = 0.0  # > 0: the static box is this wide [m] (larger than / cut by the frame)
+    object_size: tuple[float, float, float] | None = None  # [m] the object's edges instead of drawn ones
+
+
+TALL_THIN = ((0.02, 0.045), (0.02, 0.045), (0.15, 0.24))
+"""[m] ranges of the width, depth and height of a tall thin object (a bottle, a pen standing up)."""
+
+
+def tall_thin_size(rng: np.random.Generator) -> tuple[float, float, float]:
+    """Edges [m] of a tall thin object, drawn from :data:`TALL_THIN`."""
+    return tuple(float(rng.uniform(lo, hi)) for lo, hi in TALL_THIN)
 
 
 def draw_variant(action: str, seed: int, rng: np.random.Generator) -> Variant:
@@ -57,10 +67,12 @@ def draw_variant(action: str, seed: int, rng: np.random.Generator) -> Variant:
 
 
 def make_script(action: str, rng: np.random.Generator, duration: float, variant: Variant | None = None) -> Script:
-    """Scene and hand waypoints for one action (world frame of FORMATS.md); ``variant`` adds
+    """Scene and hand waypoints for one action (world frame of docs/formats.md); ``variant`` adds
     the situations of a ``"boxes"`` demonstration (None: the plain scene)."""
     u = rng.uniform
     size = np.array([u(0.05, 0.11), u(0.05, 0.11), u(0.05, 0.12)])
+    if variant is not None and variant.object_size is not None:
+        size = np.array(variant.object_size)
     yaw = u(-0.3, 0.3)
     centre = np.array([u(-0.08, 0.08), u(0.55, 0.7), size[2] / 2])
     static_pos = np.zeros((0, 3))

@@ -1,0 +1,100 @@
+"""Per-case outcome tables: written, read back, re-evaluated from an output folder, and the flips since a baseline."""
+
+import json
+
+import numpy as np
+import pytest
+
+from test_evaluate import scene
+from warpskill.bench.outcomes import (
+    CaseOutcome,
+    evaluate_folder,
+    failed_case,
+    flip_report,
+    flips,
+    folder_outcomes,
+    load_outcomes,
+    record_outcomes,
+    write_outcomes,
+)
+from warpskill.bench.second_opinion import find_tools, read_truth
+from warpskill.cli import main
+
+
+def _outcomes(*cases):
+    return [CaseOutcome(case, "pick_up", ok, () if ok else ("lifted",)) for case, ok in cases]
+
+
+def test_the_table_round_trips_through_json_and_csv(tmp_path):
+    outcomes = [CaseOutcome("pick_up_1", "pick_up", False, ("lifted",), {"scale": 1.7, "centre": 0.2}),
+                failed_case("pick_up_2", "pick_up", "DemonstrationError: no box")]
+    path = write_outcomes(tmp_path, outcomes)
+    assert load_outcomes(path) == {o.case: o for o in outcomes} == load_outcomes(tmp_path)
+    rows = (tmp_path / "outcomes.csv").read_text().splitlines()
+    assert rows[1].startswith("pick_up_1,pick_up,0,lifted,0.2000,") and rows[2].endswith("DemonstrationError: no box")
+
+
+def test_flips_name_fixed_and_broken_cases_with_their_failed_checks():
+    before = {o.case: o for o in _outcomes(("a_1", True), ("a_2", False), ("a_3", True), ("a_4", False))}
+    now = {o.case: o for o in _outcomes(("a_1", False), ("a_2", True), ("a_3", True), ("a_5", True))}
+    fixed, broken = flips(before, now)
+    assert [n.case for _, n in fixed] == ["a_2"] and [n.case for _, n in broken] == ["a_1"]
+    report = flip_report(before, now, name="yesterday")
+    assert "3 case(s) in both, 2 -> 2 succeed; 1 fixed, 1 broken" in report
+    assert "fixed  a_2" in report and "was failing (lifted)" in report
+    assert "broken a_1" in report and "now failing (lifted)" in report
+    assert "not in yesterday: a_5" in report and "only in yesterday: a_4" in report
+
+
+def test_an_output_folder_of_older_code_is_re_evaluated_as_a_baseline(tmp_path, capsys):
+    lifted = scene([0, 0.6, 0.05], [0, 0.6, 0.2], action="pick_up")
+    dropped = scene([0, 0.6, 0.05], [0, 0.6, 0.05], action="pick_up")
+    for case, recon in (("pick_up_0", lifted), ("pick_up_1", dropped)):
+        (tmp_path / "old" / case).mkdir(parents=True)
+        recon.save(tmp_path / "old" / case / "reconstruction.npz")
+    outcomes = evaluate_folder(tmp_path / "old")
+    assert [(o.case, o.success, o.failed_checks) for o in outcomes] == [("pick_up_0", True, ()),
+                                                                      ("pick_up_1", False, ("lifted",))]
+    now = folder_outcomes(tmp_path / "old", {"pick_up_0": "pick_up", "pick_up_2": "pick_up"}, {})
+    assert now[1] == failed_case("pick_up_2", "pick_up", "no reconstruction")
+    record_outcomes(tmp_path / "new", _outcomes(("pick_up_0", False), ("pick_up_1", True)),
+                    baseline=tmp_path / "old", save_baseline=tmp_path / "saved.json")
+    out = capsys.readouterr().out
+    assert "broken pick_up_0" in out and "fixed  pick_up_1" in out
+    assert json.loads((tmp_path / "saved.json").read_text())["cases"][0]["case"] == "pick_up_0"
+    assert main(["bench", "flips", str(tmp_path / "old"), str(tmp_path / "new")]) == 0
+    assert "1 fixed, 1 broken" in capsys.readouterr().out
+
+
+def test_a_baseline_that_is_no_outcome_table_is_named(tmp_path):
+    (tmp_path / "x.json").write_text("{}")
+    with pytest.raises(ValueError, match="x.json: not an outcome table"):
+        load_outcomes(tmp_path / "x.json")
+    with pytest.raises(ValueError, match="neither outcomes.json"):
+        load_outcomes(tmp_path)
+    with pytest.raises(FileNotFoundError):
+        load_outcomes(tmp_path / "missing")
+
+
+def test_second_opinion_is_skipped_cleanly_without_the_tools(tmp_path, capsys):
+    assert find_tools(tmp_path) is None
+    assert main(["bench", "second-opinion", "-o", str(tmp_path / "out"), "--tools", str(tmp_path)]) == 1
+    assert "second opinion skipped" in capsys.readouterr().out
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow
+def test_the_second_opinion_annotations_read_through_the_real_reader(tmp_path):
+    tools = find_tools()
+    if tools is None:
+        pytest.skip("the shared tools synthdemo.py / synth_sthelse.py are not here")
+    from warpskill.bench.second_opinion import generate_annotations
+    from warpskill.data.box_annotations import read_something_else, something_else_demonstration
+
+    annotations = generate_annotations(tools, tmp_path, ["push_left_to_right"], [3])
+    [video] = read_something_else(annotations / "annotations.json", annotations / "phases.csv",
+                                  annotations / "actions.csv").values()
+    demo, _ = something_else_demonstration(video)
+    truth = read_truth(tmp_path / "demos" / "push_left_to_right_s3.npz")
+    assert demo.action == "push_left_to_right" and demo.num_frames == len(truth["object_pos"])
+    assert demo.contact.any() and np.isfinite(truth["camera_height"])

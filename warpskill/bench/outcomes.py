@@ -1,0 +1,219 @@
+"""Per-case outcome tables of the success benchmarks, and the cases that flipped since a baseline.
+
+Every success benchmark (``bench synthetic``, ``bench something-else``, ``bench
+second-opinion``) writes ``OUT/outcomes.json`` and ``OUT/outcomes.csv``: one row per case
+(a synthetic ``<action>_<seed>``, a video id) with its action, whether the reconstruction
+met the criteria, the checks it failed and its key errors against the ground truth where
+there is one. A baseline is such a table, or any output folder of these benchmarks: a
+folder without ``outcomes.json`` (written by older code) is re-evaluated from the
+``<case>/reconstruction.npz`` files in it, so that earlier runs count as baselines too.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from warpskill.contract.demonstration import Demonstration
+from warpskill.contract.evaluation import Evaluation, evaluate
+from warpskill.contract.reconstruction import Reconstruction
+from warpskill.contract.results_folder import ResultsFolder
+
+OUTCOMES_JSON = "outcomes.json"
+OUTCOMES_CSV = "outcomes.csv"
+ERROR_KEYS = ("centre", "hand", "size", "camera_height", "elevation", "scale")
+"""Key errors kept per case (see :func:`warpskill.bench.synthetic.camera_frame_errors`)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class CaseOutcome:
+    """How one case of a benchmark ended.
+
+    Attributes:
+        case: the case id (``<action>_<seed>``, a video id).
+        action: the action name.
+        success: whether the reconstruction met the criteria.
+        failed_checks: the criteria it failed (``error`` when there was no reconstruction).
+        errors: key errors against the ground truth ([m], [rad], scale), empty without one.
+        note: why there is no reconstruction, or empty.
+    """
+
+    case: str
+    action: str
+    success: bool
+    failed_checks: tuple[str, ...] = ()
+    errors: dict[str, float] = dataclasses.field(default_factory=dict)
+    note: str = ""
+
+
+def judged(case: str, evaluation: Evaluation, errors: dict[str, float] | None = None) -> CaseOutcome:
+    """The outcome of a case from its evaluation (and its ground-truth errors, if any)."""
+    failed = tuple(name for name, ok in evaluation.checks.items() if not ok)
+    kept = {key: float(errors[key]) for key in ERROR_KEYS if errors and key in errors}
+    return CaseOutcome(case, evaluation.action, evaluation.success, failed, kept)
+
+
+def failed_case(case: str, action: str, reason: str) -> CaseOutcome:
+    """The outcome of a case that has no reconstruction (it counts as a failure)."""
+    return CaseOutcome(case, action, False, ("error",), {}, reason)
+
+
+def write_outcomes(folder: str | os.PathLike, outcomes: list[CaseOutcome]) -> Path:
+    """Write ``outcomes.json`` and ``outcomes.csv`` into ``folder``; returns the JSON's path."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / OUTCOMES_JSON
+    save_outcomes(path, outcomes)
+    with open(folder / OUTCOMES_CSV, "w", newline="") as handle:
+        writer = csv.writer(handle, lineterminator="\n")
+        writer.writerow(["case", "action", "success", "failed_checks", *ERROR_KEYS, "note"])
+        for o in outcomes:
+            cells = [f"{o.errors[key]:.4f}" if key in o.errors else "" for key in ERROR_KEYS]
+            writer.writerow([o.case, o.action, int(o.success), " ".join(o.failed_checks), *cells, o.note])
+    return path
+
+
+def save_outcomes(path: str | os.PathLike, outcomes: list[CaseOutcome]) -> None:
+    """Write an outcome table as JSON (``{"cases": [...]}``) to ``path``."""
+    rows = [dict(dataclasses.asdict(o), failed_checks=list(o.failed_checks)) for o in outcomes]
+    Path(path).write_text(json.dumps({"cases": rows}, indent=1) + "\n")
+
+
+def load_outcomes(source: str | os.PathLike) -> dict[str, CaseOutcome]:
+    """Case id -> outcome, from an outcome JSON or a benchmark's output folder.
+
+    A folder with ``outcomes.json`` gives that table; one without is re-evaluated from its
+    ``<case>/reconstruction.npz`` files (:func:`evaluate_folder`).
+
+    Raises:
+        FileNotFoundError: ``source`` does not exist.
+        ValueError: a JSON file that is not an outcome table, or a folder with neither.
+    """
+    source = Path(source)
+    if not source.exists():
+        raise FileNotFoundError(f"baseline {source}: no such file or folder")
+    if source.is_dir():
+        if (source / OUTCOMES_JSON).exists():
+            return load_outcomes(source / OUTCOMES_JSON)
+        outcomes = evaluate_folder(source)
+        if not outcomes:
+            raise ValueError(f"baseline {source}: neither {OUTCOMES_JSON} nor <case>/reconstruction.npz in it")
+        return {o.case: o for o in outcomes}
+    try:
+        rows = json.loads(source.read_text())["cases"]
+        outcomes = [CaseOutcome(**dict(row, failed_checks=tuple(row["failed_checks"]))) for row in rows]
+    except (json.JSONDecodeError, KeyError, TypeError) as exc:
+        raise ValueError(f"baseline {source}: not an outcome table ({type(exc).__name__}: {exc})") from None
+    return {o.case: o for o in outcomes}
+
+
+def evaluate_folder(folder: str | os.PathLike) -> list[CaseOutcome]:
+    """Outcomes of the reconstructions in a benchmark's output folder, evaluated now.
+
+    Each ``folder/<case>/reconstruction.npz`` is judged by :func:`evaluate_case` for its own
+    action (stored in it, else the ``<action>_<seed>`` case name's). Cases without a
+    reconstruction are left out.
+    """
+    paths = Path(folder).glob(f"*/{ResultsFolder.RECONSTRUCTION}")
+    cases = sorted((path.parent for path in paths), key=lambda case: (len(case.name), case.name))
+    return [evaluate_case(case) for case in cases]
+
+
+def folder_outcomes(out: str | os.PathLike, actions: dict[str, str], failures: dict[str, str]) -> list[CaseOutcome]:
+    """Outcomes of the cases ``actions`` (case id -> action) of a run into ``out``: a failure
+    (``failures``: case id -> reason) or the evaluation of ``out/<case>/reconstruction.npz``."""
+    outcomes = []
+    for case, action in actions.items():
+        if case in failures or not (Path(out) / case / ResultsFolder.RECONSTRUCTION).exists():
+            outcomes.append(failed_case(case, action, failures.get(case, "no reconstruction")))
+        else:
+            outcomes.append(evaluate_case(Path(out) / case, action))
+    return outcomes
+
+
+def evaluate_case(folder: Path, action: str | None = None) -> CaseOutcome:
+    """The outcome of ``folder/reconstruction.npz`` for ``action`` (default: the one stored in it,
+    else the ``<action>_<seed>`` folder name's); a ``demonstration.npz`` with ground truth
+    beside it adds the errors."""
+    # Deferred: bench.synthetic imports this module (and brings torch).
+    from warpskill.bench.synthetic import camera_frame_errors
+
+    recon = Reconstruction.load(folder / ResultsFolder.RECONSTRUCTION)
+    evaluation = evaluate(recon, action or str(recon.action) or folder.name.rsplit("_", 1)[0])
+    errors = None
+    demo_path = folder / ResultsFolder.DEMONSTRATION
+    if demo_path.exists():
+        truth = Demonstration.load(demo_path).truth
+        errors = camera_frame_errors(recon, truth) if truth else None
+    return judged(folder.name, evaluation, errors)
+
+
+def flips(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome]) -> tuple[list, list]:
+    """The cases in both tables whose success changed: (fixed, broken), each a list of
+    (baseline outcome, current outcome) pairs in case order."""
+    fixed, broken = [], []
+    for case, now in current.items():
+        before = baseline.get(case)
+        if before is None or before.success == now.success:
+            continue
+        (fixed if now.success else broken).append((before, now))
+    return fixed, broken
+
+
+def flip_report(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome], name: str = "baseline") -> str:
+    """Lines naming every case that flipped since ``baseline``, both ways, with the failed checks."""
+    fixed, broken = flips(baseline, current)
+    shared = set(baseline) & set(current)
+    before = sum(baseline[c].success for c in shared)
+    after = sum(current[c].success for c in shared)
+    lines = [f"since {name}: {len(shared)} case(s) in both, {before} -> {after} succeed; "
+             f"{len(fixed)} fixed, {len(broken)} broken"]
+    for before_o, now in fixed:
+        lines.append(f"  fixed  {now.case:<24} {now.action:<20} was failing {_checks(before_o)}")
+    for before_o, now in broken:
+        lines.append(f"  broken {now.case:<24} {now.action:<20} now failing {_checks(now)}")
+    only_now, only_before = sorted(set(current) - shared), sorted(set(baseline) - shared)
+    if only_now:
+        lines.append(f"  not in {name}: {_listed(only_now)}")
+    if only_before:
+        lines.append(f"  only in {name}: {_listed(only_before)}")
+    return "\n".join(lines)
+
+
+def _listed(cases: list[str], most: int = 10) -> str:
+    """Up to ``most`` case ids, then how many more."""
+    more = f" and {len(cases) - most} more" if len(cases) > most else ""
+    return ", ".join(cases[:most]) + more
+
+
+def median_errors(outcomes: list[CaseOutcome]) -> dict[str, float]:
+    """Median of each key error over the cases that have it."""
+    return {key: float(np.median([o.errors[key] for o in outcomes if key in o.errors]))
+            for key in ERROR_KEYS if any(key in o.errors for o in outcomes)}
+
+
+def record_outcomes(out: str | os.PathLike | None, outcomes: list[CaseOutcome], *,
+                    baseline: str | os.PathLike | None = None,
+                    save_baseline: str | os.PathLike | None = None) -> None:
+    """What every success benchmark does with its outcomes at the end: write the table into
+    ``out`` (if any), print the flips since ``baseline`` (if any), save a copy as
+    ``save_baseline`` (if any)."""
+    if out is not None:
+        print(f"\noutcome table: {write_outcomes(out, outcomes)}")
+    if baseline is not None:
+        print()
+        print(flip_report(load_outcomes(baseline), {o.case: o for o in outcomes}, name=str(baseline)))
+    if save_baseline is not None:
+        Path(save_baseline).parent.mkdir(parents=True, exist_ok=True)
+        save_outcomes(save_baseline, outcomes)
+        print(f"baseline saved: {save_baseline}")
+
+
+def _checks(outcome: CaseOutcome) -> str:
+    text = "(" + ", ".join(outcome.failed_checks) + ")"
+    return text + (f": {outcome.note}" if outcome.note else "")

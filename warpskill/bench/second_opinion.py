@@ -1,0 +1,145 @@
+"""``warpskill bench second-opinion``: the real-video path on an independent generator's scenes.
+
+The shared tools ``synthdemo.py`` (scripted scenes with ground truth, written without
+regard to warpskill) and ``synth_sthelse.py`` (their masks as Something-Else box
+annotations and phases) are run as separate programs: into ``OUT/demos`` and
+``OUT/annotations``. The annotation files then go through the real reader
+(:func:`~warpskill.data.box_annotations.read_something_else`,
+:func:`~warpskill.data.box_annotations.something_else_demonstration`), exactly as a real
+video's, are reconstructed into ``OUT/<video_id>/`` and judged by the success criteria and
+against the generator's ground truth. The tools are looked for in ``$WARPSKILL_TOOLS`` or
+``../shared/tools`` next to the repository; without them the benchmark says so and stops.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import subprocess
+import sys
+import time
+import traceback
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from warpskill.bench.outcomes import CaseOutcome, failed_case, judged, median_errors, record_outcomes
+from warpskill.bench.synthetic import camera_frame_errors
+from warpskill.contract.actions import ACTIONS
+from warpskill.contract.demonstration import TRUTH_PREFIX
+from warpskill.contract.evaluation import evaluate, success_table
+from warpskill.contract.results_folder import ResultsFolder
+from warpskill.data.box_annotations import read_something_else, something_else_demonstration
+from warpskill.optimizer.options import OptimizeOptions
+
+GENERATOR = "synthdemo.py"
+ANNOTATOR = "synth_sthelse.py"
+ROW = "full method (second-opinion boxes)"
+
+
+def find_tools(tools: str | os.PathLike | None = None) -> Path | None:
+    """The folder holding both tools: ``tools`` when given, else ``$WARPSKILL_TOOLS`` when set,
+    else ``../shared/tools`` beside the repository; None when that folder lacks them."""
+    repository = Path(__file__).resolve().parents[2]
+    folder = Path(tools or os.environ.get("WARPSKILL_TOOLS") or repository.parent / "shared" / "tools")
+    return folder if (folder / GENERATOR).is_file() and (folder / ANNOTATOR).is_file() else None
+
+
+def generate_annotations(tools: Path, out: Path, actions: Sequence[str], seeds: Sequence[int], *,
+                         noise: int = 0, exit_view: bool = False) -> Path:
+    """Run the two tools: demonstrations into ``out/demos``, annotation files into
+    ``out/annotations`` (returned). Existing files are regenerated (the tools are deterministic)."""
+    demos, annotations = out / "demos", out / "annotations"
+    command = [sys.executable, str(tools / GENERATOR), str(demos), "--actions", ",".join(actions),
+               "--seeds", *map(str, seeds), "--noise", str(noise), "--quiet"]
+    subprocess.run(command + (["--exit-view"] if exit_view else []), check=True)
+    paths = [str(demos / f"{action}_s{seed}.npz") for action in actions for seed in seeds]
+    subprocess.run([sys.executable, str(tools / ANNOTATOR), *paths, str(annotations)], check=True,
+                   stdout=subprocess.DEVNULL)
+    return annotations
+
+
+def read_truth(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """The ``truth_*`` arrays of a generated demonstration, keyed without the prefix."""
+    with np.load(path, allow_pickle=False) as arrays:
+        return {key[len(TRUTH_PREFIX):]: arrays[key] for key in arrays.files if key.startswith(TRUTH_PREFIX)}
+
+
+def bench_second_opinion(
+    out: str | os.PathLike,
+    options: OptimizeOptions | None = None,
+    *,
+    seeds: Sequence[int] = range(1, 11),
+    actions: Sequence[str] | None = None,
+    exit_view: bool = False,
+    noise: int = 0,
+    tools: str | os.PathLike | None = None,
+    baseline: str | os.PathLike | None = None,
+    save_baseline: str | os.PathLike | None = None,
+) -> dict | None:
+    """Generate, annotate, read, reconstruct and judge; print the table and the errors.
+
+    Args:
+        out: output folder (``demos/``, ``annotations/``, ``<video_id>/``, the outcome table).
+        seeds: the generator's seeds.
+        actions: a subset of the actions (default: all 9).
+        exit_view: pick-ups lifted out of the top of the view (the generator's ``--exit-view``).
+        options: the optimisation options (:class:`OptimizeOptions`); default: all defaults.
+        noise: the generator's mask and contact noise level (0, 1, 2).
+        tools: the folder of the tools (default: see :func:`find_tools`).
+        baseline: an outcome table or output folder to report flips against.
+        save_baseline: also save the outcome table here.
+
+    Returns:
+        ``{"rows": {row: [(action, success)]}, "outcomes": [CaseOutcome]}``, or None when
+        the tools are absent.
+    """
+    from warpskill.optimizer.pipeline import optimize  # torch and Warp: only for a run
+
+    folder = find_tools(tools)
+    if folder is None:
+        print(f"second opinion skipped: {GENERATOR} and {ANNOTATOR} not found (give --tools or $WARPSKILL_TOOLS)")
+        return None
+    out = Path(out)
+    actions = list(actions or ACTIONS)
+    annotations = generate_annotations(folder, out, actions, seeds, noise=noise, exit_view=exit_view)
+    table = read_something_else(annotations / "annotations.json", annotations / "phases.csv",
+                                annotations / "actions.csv")
+    demo_paths = _ids(annotations / "ids.csv")
+    outcomes: list[CaseOutcome] = []
+    for vid, video in table.items():
+        case = Path(demo_paths[vid]).stem
+        start = time.perf_counter()
+        try:
+            demo, notes = something_else_demonstration(video)
+            keeper = ResultsFolder(out / case)
+            keeper.write_text(keeper.path / "notes.txt", "".join(note + "\n" for note in notes))
+            with keeper.locked():
+                recon = keeper.finished_reconstruction()
+                if recon is None:
+                    recon = optimize(demo, options, progress=False, checkpoint=keeper.checkpoint)
+                    keeper.save(recon, keeper.reconstruction)
+            errors = camera_frame_errors(recon, read_truth(demo_paths[vid]))
+            outcome = judged(case, evaluate(recon, video.action), errors)
+        except Exception as exc:  # one bad case must not stop the benchmark: report it, go on
+            ResultsFolder(out / case).record_error(traceback.format_exc())
+            outcome = failed_case(case, video.action, f"{type(exc).__name__}: {exc}")
+        outcomes.append(outcome)
+        verdict = "ok  " if outcome.success else "fail (" + ", ".join(outcome.failed_checks) + ")"
+        scale = f"scale {outcome.errors['scale']:.2f}" if "scale" in outcome.errors else outcome.note
+        print(f"{case:<24} {verdict}  {scale}, {time.perf_counter() - start:.1f} s", flush=True)
+    rows = {ROW: [(o.action, o.success) for o in outcomes]}
+    print()
+    print(success_table(rows))
+    medians = median_errors(outcomes)
+    if medians:
+        print("median errors: " + ", ".join(f"{key} {value:.3f}" for key, value in medians.items()))
+    record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
+    return {"rows": rows, "outcomes": outcomes}
+
+
+def _ids(path: Path) -> dict[str, str]:
+    """video id -> the generated demonstration's path (the annotator's ``ids.csv``)."""
+    with open(path, newline="") as handle:
+        return {row["video_id"]: row["demo"] for row in csv.DictReader(handle)}
