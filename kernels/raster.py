@@ -49,9 +49,9 @@ MAX_HULL = 32
 
 CUTOFF = 8.0
 """Coverage is exactly 0 where sd > CUTOFF * sigma and 1 where sd < -CUTOFF * sigma. The tail
-dropped, sigmoid(-8) = 3.4e-4 of a pixel, is a tenth of the masks' 8-bit step (1/255); the
-band a third narrower than at +-12 sigma makes the raster's forward + backward 21-25 %
-faster on dev videos' scenes, and moves their gradients by about 0.1 %."""
+dropped, sigmoid(-8) = 3.4e-4 of a pixel, is a tenth of the masks' 8-bit step (1/255), so
+the cut costs no precision the targets have, while a narrow band leaves fewer partial pixels
+to shade and differentiate (docs/results-history.md has the timings)."""
 
 MITER_CAP = 4.0
 """Bounds pad the hull by CUTOFF * sigma times the largest corner miter, capped here."""

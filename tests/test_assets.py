@@ -87,6 +87,7 @@ def _scene():
     return plan, recon
 
 
+@pytest.mark.slow
 def test_mujoco_model_uses_the_scene_config():
     import mujoco
 
@@ -111,6 +112,7 @@ def test_mujoco_model_uses_the_scene_config():
     assert model.vis.global_.offwidth >= config.video.width
 
 
+@pytest.mark.slow
 def test_newton_model_uses_the_scene_config():
     pytest.importorskip("newton")
     pytest.importorskip("trimesh")

@@ -26,6 +26,7 @@ def _truth_scene(action, seed, dtype=torch.float64):
     return scene, truth
 
 
+@pytest.mark.slow
 def test_render_many_matches_one_scene_at_a_time_values_and_gradients():
     intrinsics = Intrinsics.default(60, 107)
     cases = [_truth_scene("put_onto", 0)[0], _truth_scene("pick_up", 1)[0], _truth_scene("put_behind", 2)[0]]
@@ -51,6 +52,7 @@ def test_render_many_matches_one_scene_at_a_time_values_and_gradients():
                                        err_msg=name)
 
 
+@pytest.mark.slow
 def test_render_many_profiles_match_the_masks_profiles_values_and_gradients():
     # Profiles straight from the raster, for a group of three scenes of which two share their
     # targets (two hypotheses of one video), against the profiles of each scene's own masks.
@@ -114,6 +116,7 @@ class _Bowl(torch.nn.Module):
         return {"bowl": (self.x - self.centre).square().sum() + 0.05 * self.x.abs().sum()}
 
 
+@pytest.mark.slow
 def test_minimise_treats_each_module_as_if_it_were_alone():
     config = OptimizeConfig(plateau_patience=3)
     centres = ([0.3, -0.2, 0.1], [2.0, 1.0, -1.0])
@@ -129,6 +132,7 @@ def test_minimise_treats_each_module_as_if_it_were_alone():
         torch.testing.assert_close(module.x, alone.x, rtol=0, atol=0)
 
 
+@pytest.mark.slow
 def test_optimize_many_matches_optimize_on_each():
     demos = [make_demonstration(a, seed=0, image_size=(60, 107), duration=2.0) for a in ("pick_up", "put_onto")]
     many = optimize_many(demos, config=SMALL, progress=False)

@@ -13,6 +13,9 @@ import pytest
 
 ray = pytest.importorskip("ray")
 
+# Every test here shares one local Ray cluster and optimises through it (seconds each).
+pytestmark = pytest.mark.slow
+
 from warpskill.cluster.runner import optimize_folder, ray_session
 from warpskill.contract.reconstruction import FIELD_SHAPES, Reconstruction  # noqa: E402
 from warpskill.optimizer.config import OptimizeConfig

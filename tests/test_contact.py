@@ -150,6 +150,7 @@ def _check_adjoint_against_fd(s: dict, evaluate, seeds: list[np.ndarray], eps=1e
 # tests
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scalar, rtol", [(wp.float64, 1e-12), (wp.float32, 2e-5)])
 def test_impulses_match_numpy_reference(scalar, rtol):
     s = _scenes(seed=1)

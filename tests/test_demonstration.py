@@ -1,4 +1,4 @@
-"""Tests for warpskill.contract.demonstration: the demonstration file of FORMATS.md."""
+"""Tests for warpskill.contract.demonstration: the demonstration file of docs/formats.md."""
 
 from __future__ import annotations
 

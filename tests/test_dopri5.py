@@ -68,6 +68,7 @@ def free_fall_inputs(frames: int = 7) -> tuple[SceneInputs, dict]:
     return fall, options
 
 
+@pytest.mark.slow
 def test_free_fall_matches_the_analytic_solution_and_warp():
     inputs, options = free_fall_inputs()
     out = simulate_dopri5(inputs, **options)
@@ -84,6 +85,7 @@ def test_free_fall_matches_the_analytic_solution_and_warp():
     assert (lag <= g * dt * t / 2 * 1.01 + 1e-9).all()  # Euler's first-order error, no more
 
 
+@pytest.mark.slow
 def test_put_onto_agrees_with_warp(put_onto_rollouts):
     _, _, warp, ours, events = put_onto_rollouts
     assert len(events) == 2, "grasp and release"
@@ -146,6 +148,7 @@ def release_window(rollout, inputs: SceneInputs, spf: int, first: int = 16, fram
     )
 
 
+@pytest.mark.slow
 def test_gradients_match_finite_differences_across_the_release(put_onto_rollouts):
     """Through the release event (its time moves with grasp0 and the grasp rates) and the
     landing. The tolerances are tightened: at the default rtol 1e-7 the solver's error

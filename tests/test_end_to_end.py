@@ -12,6 +12,9 @@ from warpskill.cli import main  # noqa: E402
 from warpskill.contract.reconstruction import Reconstruction  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
 
+# Every test here reconstructs, plans and replays (seconds each).
+pytestmark = pytest.mark.slow
+
 
 EXAMPLE = ("examples/annotations.json", "examples/phases.csv", "examples/actions.csv")
 VIDEO = "synthetic-put_next_to-0"  # the example annotation set's one video

@@ -117,6 +117,8 @@ def check_reconstruction(recon: Reconstruction) -> None:
         assert value.shape == tuple(dims.get(size, size) for size in template), name
         if name == "action":
             assert value.dtype.kind == "U" and str(value) in ("", *ACTIONS)
+        elif name == "options":
+            assert value.dtype.kind == "U"
         elif name == "image_size":
             assert value.dtype == np.int64 and (value > 0).all()
         else:
@@ -353,6 +355,7 @@ def demonstration_mutation(draw, arrays, rng, nhw):
     return set(DEMO_KEYS) | {"truth_"} if key == "hand_mask" else {key}
 
 
+@pytest.mark.slow
 @fuzz(450)
 @given(demonstration_arrays())
 def test_malformed_demonstration_files_raise_demonstration_error(case):
@@ -566,6 +569,7 @@ def corrupt_npz(draw):
     return loader, bytes(data)
 
 
+@pytest.mark.slow
 @fuzz(250)
 @given(corrupt_npz())
 def test_corrupt_npz_bytes_raise_the_loaders_error(case):
@@ -691,6 +695,7 @@ def _reader_names(root: Path, names: set[str]) -> set[str]:
     return {str(root / name) if "/" in name or name == "" else name for name in names} | {str(root)} | set(DEMO_KEYS)
 
 
+@pytest.mark.slow
 @fuzz(150)
 @given(mask_folder_trees())
 def test_malformed_mask_folders_raise_demonstration_error(case):
@@ -874,6 +879,7 @@ def _csv_bytes(header, rows) -> bytes:
     return buffer.getvalue().encode("utf-8", "surrogateescape")
 
 
+@pytest.mark.slow
 @fuzz(200)
 @given(something_else_files())
 def test_malformed_something_else_files_raise_demonstration_error(case):

@@ -3,6 +3,7 @@
 import importlib
 
 import numpy as np
+import pytest
 
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.inputs import held_after_contact
@@ -49,6 +50,7 @@ def test_an_object_that_leaves_through_the_border_with_the_hand_is_in_doubt():
     assert not held_after_contact(vanish, CONTACT).any()
 
 
+@pytest.mark.slow
 def test_both_endings_go_through_the_physics_and_the_video_picks_one(monkeypatch):
     calls = []
     make = optimize_module.make_physical_scene

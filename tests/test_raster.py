@@ -177,6 +177,7 @@ def perturbed_loss(x: torch.Tensor, weights: torch.Tensor, intrinsics: Intrinsic
     return (masks * weights).sum()
 
 
+@pytest.mark.slow
 def test_gradients_match_finite_differences():
     intrinsics = FULL
     H, W = intrinsics.image_size

@@ -1,4 +1,4 @@
-"""Tests for warpskill.contract.reconstruction: the reconstruction file of FORMATS.md."""
+"""Tests for warpskill.contract.reconstruction: the reconstruction file of docs/formats.md."""
 
 from __future__ import annotations
 
@@ -44,6 +44,7 @@ def valid_fields(num_static: int = K) -> dict[str, np.ndarray]:
         "image_size": np.array([6, 8]),
         "action": np.array("put_onto"),
         "loss": np.array(0.25),
+        "options": np.array('{"seed": 0}'),
     }
 
 

@@ -47,6 +47,7 @@ def rollouts64():
     return results
 
 
+@pytest.mark.slow
 def test_rollout_values_agree_in_float64(rollouts64):
     (warp, _), (ref, _) = rollouts64
     grasped = warp.grasped[0].detach()
@@ -63,6 +64,7 @@ def test_rollout_gradients_agree_in_float64(rollouts64):
         assert rel < 1e-8, f"{name}: relative difference {rel:.1e}"
 
 
+@pytest.mark.slow
 def test_rollout_values_agree_in_float32():
     inputs, options = rollout_inputs(torch.float32)
     warp, ref = simulate(inputs, **options), simulate_reference(inputs, **options)
@@ -134,6 +136,7 @@ def _render_with(renderer, scene: SceneTrajectories, intrinsics: Intrinsics, sig
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
 def test_render_values_and_gradients_agree(small_scene, dtype):
     scene, intrinsics = small_scene

@@ -61,6 +61,7 @@ def carried():
     return recon, robot_recon, robot.retarget(recon)
 
 
+@pytest.mark.slow
 def test_the_onset_is_the_first_frame_the_robot_can_take_the_object_at(carried):
     recon, robot_recon, _ = carried
     k = onset(robot_recon)

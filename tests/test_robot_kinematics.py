@@ -136,7 +136,7 @@ def test_link_poses_are_the_mujoco_replays(robot_run):
     # The replay reads MuJoCo's body poses one 2 ms physics step behind its joints: mm, not exact.
     tcp = poses["panda_hand_tcp"]
     assert np.abs(tcp[:, :3, 3] - result.reconstruction.hand_pos).max() < 1e-3
-    hand_rot = tcp[:, :3, :3] @ np.diag([1.0, -1.0, -1.0])  # TCP frame -> hand frame of FORMATS.md
+    hand_rot = tcp[:, :3, :3] @ np.diag([1.0, -1.0, -1.0])  # TCP frame -> hand frame of docs/formats.md
     assert np.abs(hand_rot - result.reconstruction.hand_rot).max() < 1e-2
 
 

@@ -1,13 +1,17 @@
-"""Replaying Panda plans in Newton (issue 5): a dynamic, position-controlled robot that agrees with MuJoCo (CPU)."""
+"""Replaying Panda plans in Newton: a dynamic, position-controlled robot that agrees with MuJoCo (CPU)."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from robot_support import require_robot
 
 robot = require_robot("placo", "mujoco", "newton", "trimesh")  # trimesh: Newton's URDF importer reads meshes with it
 from warpskill.contract.reconstruction import Reconstruction  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
+
+# Every test here plans and replays in MuJoCo and Newton (seconds each).
+pytestmark = pytest.mark.slow
 
 
 def _replays(action: str, seed: int):

@@ -1,4 +1,4 @@
-"""Replaying Panda plans in MuJoCo (issue 5): ground-truth reconstructions succeed; the CLI writes replay.npz."""
+"""Replaying Panda plans in MuJoCo: ground-truth reconstructions succeed; the CLI writes replay.npz."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ def truth(action: str, seed: int) -> Reconstruction:
     return Reconstruction(**make_demonstration(action, seed=seed, noise="none").truth)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "action, seed",
     [("pick_up", 0), ("pull_left_to_right", 0), ("pull_right_to_left", 0), ("push_right_to_left", 1),
@@ -81,6 +82,7 @@ def test_cli_placement_moves_the_robot(tmp_path, capsys):
     np.testing.assert_allclose(centre_a, centre_b, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_cli_demo_runs_the_robot_steps(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "-o", str(out), "--action", "push_left_to_right", "--iterations", "5", "--quiet"]) == 0
@@ -91,6 +93,7 @@ def test_cli_demo_runs_the_robot_steps(tmp_path, capsys):
     assert "replay: " in printed and printed.count("push_left_to_right: ") == 2
 
 
+@pytest.mark.slow
 def test_bench_robot_prints_the_table_and_keeps_the_plans(tmp_path, capsys):
     assert main(["bench", "robot", "--seeds", "1", "--actions", "push_left_to_right", "put_onto",
                  "-o", str(tmp_path), "--video"]) == 0

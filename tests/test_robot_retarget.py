@@ -1,4 +1,4 @@
-"""Retargeting to the Panda (issue 5): plans respect joint limits and avoid collisions; bad inputs fail clearly."""
+"""Retargeting to the Panda: plans respect joint limits and avoid collisions; bad inputs fail clearly."""
 
 from __future__ import annotations
 
@@ -47,6 +47,7 @@ def test_urdf_paths_resolved():
     assert (panda_description_dir() / "meshes" / "collision" / "link0.stl").is_file()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", CASES)
 def test_plan_within_joint_limits(plans, case):
     _, plan = plans[case]
@@ -96,6 +97,7 @@ def test_infeasible_grasp_names_frame():
         robot.retarget(recon, keep_size=True)
 
 
+@pytest.mark.slow
 def test_unreachable_target_names_frame():
     recon = truth("pick_up", 0)
     lifted = recon.object_pos.copy()

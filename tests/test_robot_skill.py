@@ -47,6 +47,7 @@ def far_static(recon: Reconstruction, distance: float = 1.7) -> Reconstruction:
                                static_size=np.array([[0.1, 0.1, 0.1]]))
 
 
+@pytest.mark.slow
 def test_the_robot_stands_where_it_can_do_the_task():
     recon = far_static(truth("pick_up", 0))
     # At the default placement the cuboid lies 0.85 m to the side of the scene centre, about 1 m from

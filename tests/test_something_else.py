@@ -109,6 +109,7 @@ def test_bench_reports_a_failing_video_and_goes_on(tmp_path, capsys):
     assert code == 0 and "ERROR DemonstrationError: video 7: no action phase" in out and "0/1" in out
 
 
+@pytest.mark.slow
 def test_bench_reports_each_videos_reconstruction_time_apart_from_its_pictures(tmp_path, capsys):
     paths = _write(tmp_path, _messy())
     code = main(["bench", "something-else", "--annotations", str(paths[0]), "--phases", str(paths[1]),

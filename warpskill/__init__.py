@@ -5,6 +5,7 @@ The public API, loaded on first use (so the command line starts fast):
 - data: :class:`Demonstration`, :class:`Reconstruction`, :data:`ACTIONS`
 - reconstruction: :func:`optimize`, :func:`optimize_many`, :class:`OptimizeOptions`, :class:`OptimizeConfig`, :class:`LossWeights`
 - metric: :func:`evaluate`
+- skill: :func:`skill_from` -> :class:`Skill`, carried to a :class:`Layout` (:meth:`Skill.apply`)
 - engine: :func:`simulate`, :class:`PhysicsConfig`, :func:`render_silhouettes`
 - synthetic data: :func:`make_demonstration`
 - robot (extra ``warpskill[robot]``): :func:`retarget`, :func:`replay`, :class:`RobotPlan`, :class:`Replay`
@@ -42,6 +43,10 @@ _EXPORTS = {
     "PlanError": "robot.plan",
     "Replay": "contract.replay",
     "Intrinsics": "contract.camera",
+    "Skill": "contract.skill",
+    "Layout": "contract.skill",
+    "LayoutError": "contract.skill",
+    "skill_from": "contract.skill",
     "save_pictures": "visual.pictures",
     "view": "visual.rerun_view",
     **{layer: None for layer in ("contract", "data", "engine", "optimizer", "robot", "visual", "cluster", "bench")},

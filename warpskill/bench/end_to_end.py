@@ -20,6 +20,8 @@ from typing import Sequence
 
 import numpy as np
 
+from warpskill.contract.results_folder import ResultsFolder
+
 ENGINES: tuple[str, ...] = ("mujoco", "newton")
 
 
@@ -113,15 +115,15 @@ def robot_step(recon, folder: Path | None = None, *, engines: Sequence[str] = EN
         return RobotOutcome(reason=one_line(error))
     outcome = RobotOutcome(plan=plan)
     if folder is not None:
-        folder.mkdir(parents=True, exist_ok=True)
-        plan.save(folder / "plan.npz")
+        keeper = ResultsFolder(folder)
+        keeper.save(plan, keeper.plan)
     for engine in engines:
         cpu = time.process_time()
         result = replay(plan, recon, engine=engine, device=None if engine == "mujoco" else device)
         outcome.cpu_seconds[engine] = time.process_time() - cpu
         outcome.replays[engine] = result
         if folder is not None:
-            result.save(folder / f"replay_{engine}.npz")
+            keeper.save(result, keeper.engine_replay(engine))
     if video and folder is not None and outcome.replays:
         outcome.video = record(plan, plan.scene(recon), next(iter(outcome.replays.values())), folder)
     return outcome

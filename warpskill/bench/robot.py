@@ -11,23 +11,27 @@ engine, end to end), the planning and replay times (wall and CPU), how the engin
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
 from warpskill.contract.actions import ACTIONS
+from warpskill.optimizer.options import OptimizeOptions
 
 SOURCES: tuple[str, ...] = ("truth", "optimised")
 
 
-def synthetic_reconstruction(action: str, seed: int, source: str, *, noise: str = "moderate",
-                             folder: Path | None = None, device: str = "cpu"):
+def synthetic_reconstruction(action: str, seed: int, source: str, options: OptimizeOptions | None = None, *,
+                             noise: str = "moderate", folder: Path | None = None):
     """The reconstruction of synthetic ``action`` / ``seed`` from ``source``.
 
-    ``truth``: the noise-free ground truth; ``optimised``: :func:`warpskill.optimize` on the
-    demonstration with ``noise``, cached as ``folder/reconstruction.npz`` when ``folder`` is
-    given (a rerun loads it).
+    ``truth``: the noise-free ground truth; ``optimised``: :func:`warpskill.optimize` with
+    ``options`` (its seed replaced by ``seed``) on the demonstration with ``noise``, cached
+    as ``folder/reconstruction.npz`` when ``folder`` is given (a rerun loads it; a corrupt
+    one is redone).
     """
     from warpskill.contract.reconstruction import Reconstruction
+    from warpskill.contract.results_folder import ResultsFolder
     from warpskill.optimizer.pipeline import optimize
     from warpskill.synthetic import make_demonstration
 
@@ -35,18 +39,19 @@ def synthetic_reconstruction(action: str, seed: int, source: str, *, noise: str 
         raise ValueError(f"unknown source {source!r}; valid sources: {', '.join(SOURCES)}")
     if source == "truth":
         return Reconstruction(**make_demonstration(action, seed=seed, noise="none").truth)
-    cached = folder / "reconstruction.npz" if folder is not None else None
-    if cached is not None and cached.is_file():
-        return Reconstruction.load(cached)
-    recon = optimize(make_demonstration(action, seed=seed, noise=noise), device=device, seed=seed, progress=False,
-                     checkpoint=folder / "checkpoint.pt" if folder is not None else None)
+    keeper = ResultsFolder(folder) if folder is not None else None
+    cached = keeper.finished_reconstruction() if keeper is not None else None
     if cached is not None:
-        recon.save(cached)
+        return cached
+    recon = optimize(make_demonstration(action, seed=seed, noise=noise), replace(options or OptimizeOptions(), seed=seed),
+                     progress=False, checkpoint=keeper.checkpoint if keeper is not None else None)
+    if keeper is not None:
+        keeper.save(recon, keeper.reconstruction)
     return recon
 
 
-def bench_robot(*, seeds: int = 3, source: str = "truth", engines: Sequence[str] = ("mujoco",),
-                actions: Sequence[str] | None = None, out: Path | None = None, device: str = "cpu",
+def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, source: str = "truth",
+                engines: Sequence[str] = ("mujoco",), actions: Sequence[str] | None = None, out: Path | None = None,
                 video: bool = False) -> dict:
     """Plan and replay every action x seed; print the success table per engine and the timings.
 
@@ -54,13 +59,14 @@ def bench_robot(*, seeds: int = 3, source: str = "truth", engines: Sequence[str]
     ``warpskill bench something-else --robot`` do.
 
     Args:
+        options: the optimiser's options with ``source="optimised"``
+            (:class:`OptimizeOptions`; each case with its own seed); its device is also Newton's.
         seeds: seeds per action.
         source: ``truth`` or ``optimised`` (see :func:`synthetic_reconstruction`).
         engines: replay engines (``mujoco``, ``newton``).
         actions: a subset of the actions (default: all 9).
         out: folder for the reconstructions, plans and replays (``OUT/<action>_<seed>/``);
             optimised reconstructions found there are reused.
-        device: Torch device of the optimiser and Warp device of Newton.
         video: also write ``OUT/<action>_<seed>/replay.mp4`` of each plan (MuJoCo; a plot
             without an offscreen renderer).
 
@@ -74,6 +80,8 @@ def bench_robot(*, seeds: int = 3, source: str = "truth", engines: Sequence[str]
     from warpskill.robot import prefer_headless_gl
 
     prefer_headless_gl()
+    options = options or OptimizeOptions()
+    device = options.device or "cpu"
 
     actions = list(actions or ACTIONS)
     cases, outcomes, failures = [], [], []
@@ -82,7 +90,7 @@ def bench_robot(*, seeds: int = 3, source: str = "truth", engines: Sequence[str]
             folder = out / f"{action}_{seed}" if out is not None else None
             if folder is not None:
                 folder.mkdir(parents=True, exist_ok=True)
-            recon = synthetic_reconstruction(action, seed, source, folder=folder, device=device)
+            recon = synthetic_reconstruction(action, seed, source, options, folder=folder)
             reconstructed = evaluate(recon, action).success
             outcome = robot_step(recon, folder, engines=engines, device=device, video=video)
             cases.append((action, reconstructed, outcome))

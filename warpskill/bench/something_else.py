@@ -4,8 +4,9 @@ Every video of the annotation files is turned into a demonstration
 (:mod:`warpskill.data.box_annotations`), reconstructed and evaluated. Per video, ``OUT/<id>/``
 receives ``notes.txt`` (what was done about messy annotations), ``reconstruction.npz``
 and the pictures. A video that fails is reported with its reason and counts as a failure
-in the table; the run goes on. A video whose ``reconstruction.npz`` exists is not
-reconstructed again, only evaluated. With ``workers`` the videos are reconstructed over
+in the table; the run goes on. A video whose ``reconstruction.npz`` is finished (loads:
+:class:`~warpskill.contract.results_folder.ResultsFolder`) is not reconstructed again,
+only evaluated; a corrupt one is redone. With ``workers`` the videos are reconstructed over
 Ray (:func:`warpskill.cluster.optimize_folder`), that many at a time, under one progress bar.
 
 With ``robot``, every reconstruction then goes through the robot step of ``warpskill bench
@@ -35,12 +36,15 @@ from warpskill.bench.end_to_end import (
     robot_step,
     timing_lines,
 )
+from warpskill.bench.outcomes import folder_outcomes, record_outcomes
 from warpskill.contract.evaluation import evaluate, success_table
 from warpskill.contract.reconstruction import Reconstruction
+from warpskill.contract.results_folder import ResultsFolder
 from warpskill.data.box_annotations import (
     read_something_else,
     something_else_demonstration,
 )
+from warpskill.optimizer.options import OptimizeOptions
 
 ROW = "full method (box masks)"
 
@@ -49,10 +53,9 @@ def bench_something_else(
     annotations: str | os.PathLike,
     phases: str | os.PathLike,
     actions: str | os.PathLike,
+    options: OptimizeOptions | None = None,
     *,
     out: str | os.PathLike,
-    iterations: int | None = None,
-    device: str = "cpu",
     videos: list[str] | None = None,
     pictures: bool = True,
     workers: int | None = None,
@@ -60,14 +63,16 @@ def bench_something_else(
     robot: bool = False,
     engines: Sequence[str] = ENGINES,
     video: bool = False,
+    baseline: str | os.PathLike | None = None,
+    save_baseline: str | os.PathLike | None = None,
 ) -> dict:
     """Reconstruct and evaluate every annotated video; print progress and the table.
 
     Args:
         annotations, phases, actions: the files of :func:`~warpskill.data.box_annotations.read_something_else`.
         out: output folder (``OUT/<video_id>/``).
-        iterations: physics-stage iterations; None for the library's default.
-        device: ``"cpu"`` or ``"cuda"``.
+        options: the optimisation options (:class:`OptimizeOptions`), the same on both paths;
+            default: all defaults. Its device is also Newton's with ``robot``.
         videos: a subset of video ids; None for all.
         pictures: write the pictures of each reconstruction.
         workers: reconstruct over Ray, this many videos at a time (one per core); None: one
@@ -77,13 +82,16 @@ def bench_something_else(
         robot: also plan each reconstruction for the Panda and replay it (see above).
         engines: the replay engines of ``robot``.
         video: with ``robot``, also write ``OUT/<id>/replay.mp4`` (MuJoCo's rendering of the plan).
+        baseline, save_baseline: see :func:`warpskill.bench.outcomes.record_outcomes`; the
+            per-video outcome table is written to ``OUT/outcomes.json`` in any case.
 
     Returns:
         ``{"rows": {row: [(action, success)]}, "failures": {video_id: reason},
         "seconds": {video_id: seconds}, "wall_seconds": seconds}`` (``seconds``: each video's
         reconstruction, both stages, where this run made it); with ``robot`` also
         ``"robot": {video_id: RobotOutcome or None}`` and ``"agreement"``
-        (:func:`~warpskill.bench.end_to_end.agreement`).
+        (:func:`~warpskill.bench.end_to_end.agreement`); and ``"outcomes"`` (the
+        :class:`~warpskill.bench.outcomes.CaseOutcome` of each video).
     """
     from warpskill.optimizer.pipeline import optimize
     from warpskill.visual.pictures import save_pictures
@@ -94,13 +102,15 @@ def bench_something_else(
         raise ValueError(f"videos not in the annotation files: {', '.join(unknown)}")
     out = Path(out)
     wall = time.perf_counter()
-    step = _RobotStep(engines, device, video) if robot else None
+    options = options or OptimizeOptions()
+    step = _RobotStep(engines, options.device or "cpu", video) if robot else None
     if workers is not None or address:
         from warpskill.cluster import INSTALL_HINT
         from warpskill.cluster.runner import ray_available
 
         if ray_available():
-            return _bench_on_ray(table, videos or list(table), out, iterations, device, pictures, workers, address, step)
+            result = _bench_on_ray(table, videos or list(table), out, options, pictures, workers, address, step)
+            return _with_outcomes(result, out, table, videos or list(table), baseline, save_baseline)
         print(f"--workers needs Ray, which is not installed ({INSTALL_HINT}): running serially")
     results, failures, seconds = [], {}, {}
     for vid in videos or list(table):
@@ -113,23 +123,22 @@ def bench_something_else(
             demo, notes = something_else_demonstration(video)
             folder.mkdir(parents=True, exist_ok=True)
             (folder / "notes.txt").write_text("".join(note + "\n" for note in notes))
-            done = folder / "reconstruction.npz"
-            if done.exists():
-                recon, status = Reconstruction.load(done), "done before"
-            else:
-                optimizing = time.perf_counter()
-                recon = optimize(demo, device=device, iterations=iterations, progress=False,
-                                 checkpoint=folder / "checkpoint.pt")
-                seconds[vid] = time.perf_counter() - optimizing
-                recon.save(done)
-                if pictures:
-                    save_pictures(recon, demo, folder)
-                status = "reconstructed"
+            keeper = ResultsFolder(folder)
+            with keeper.locked():
+                recon, status = keeper.finished_reconstruction(), "done before"
+                if recon is None:
+                    optimizing = time.perf_counter()
+                    recon = optimize(demo, options, progress=False, checkpoint=keeper.checkpoint)
+                    seconds[vid] = time.perf_counter() - optimizing
+                    keeper.save(recon, keeper.reconstruction)
+                    if pictures:
+                        save_pictures(recon, demo, folder)
+                    status = "reconstructed"
             evaluation = evaluate(recon, video.action)
         except Exception as exc:  # one bad video must not stop the benchmark: report it, go on
             failures[vid] = f"{type(exc).__name__}: {exc}"
             if folder.exists():
-                (folder / "error.txt").write_text(traceback.format_exc())
+                ResultsFolder(folder).record_error(traceback.format_exc())
             if video.action:  # without an action it has no column in the table
                 results.append((video.action, False))
                 if step is not None:
@@ -143,10 +152,19 @@ def bench_something_else(
         print(f"{vid:>6} {video.action:<20} {verdict}  {status}, {took}, {len(notes)} note(s)", flush=True)
         if step is not None:
             step.run(vid, video.action, recon, evaluation.success, folder)
-    return _report(results, failures, seconds, time.perf_counter() - wall, "serial, in this process", step)
+    result = _report(results, failures, seconds, time.perf_counter() - wall, "serial, in this process", step)
+    return _with_outcomes(result, out, table, videos or list(table), baseline, save_baseline)
 
 
-def _bench_on_ray(table, vids, out: Path, iterations, device, pictures, workers, address, step) -> dict:
+def _with_outcomes(result: dict, out: Path, table, vids, baseline, save_baseline) -> dict:
+    """The run's result with its per-video outcomes added, written to ``out``, compared with ``baseline``."""
+    cases = {vid: table[vid].action for vid in vids if table[vid].action}
+    outcomes = folder_outcomes(out, cases, result["failures"])
+    record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
+    return {**result, "outcomes": outcomes}
+
+
+def _bench_on_ray(table, vids, out: Path, options, pictures, workers, address, step) -> dict:
     """The videos' demonstrations built here, reconstructed over Ray, then evaluated here."""
     from warpskill.cluster.runner import optimize_folder
     from warpskill.visual.pictures import save_pictures
@@ -164,11 +182,11 @@ def _bench_on_ray(table, vids, out: Path, iterations, device, pictures, workers,
         except Exception as exc:
             failures[vid] = f"{type(exc).__name__}: {exc}"
             if (out / vid).exists():
-                (out / vid / "error.txt").write_text(traceback.format_exc())
+                ResultsFolder(out / vid).record_error(traceback.format_exc())
             if video.action:
                 results.append((video.action, False))
-    summary = optimize_folder(demos, out, workers=workers, address=address, device=device, iterations=iterations,
-                              progress=True, postprocess=save_pictures if pictures else None)
+    summary = optimize_folder(demos, out, options, workers=workers, address=address, progress=True,
+                              postprocess=save_pictures if pictures else None)
     for vid in vids:
         video = table[vid]
         outcome = summary.outcomes.get(vid)

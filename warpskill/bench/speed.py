@@ -38,12 +38,8 @@ from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.inputs import WorkingInputs, working_inputs
 from warpskill.optimizer.pipeline import optimize
 from warpskill.optimizer.scene import SceneTrajectories
-from warpskill.optimizer.stage_a import (
-    OBJECT_DEPTH_HYPOTHESES,
-    InitialParameters,
-    initial_guess,
-    initial_objective,
-)
+from warpskill.optimizer.guess import OBJECT_DEPTH_HYPOTHESES, initial_guess
+from warpskill.optimizer.stage_a import InitialParameters, initial_objective
 from warpskill.optimizer.stage_b import (
     PhysicalScene,
     make_physical_scene,

@@ -5,14 +5,18 @@ from __future__ import annotations
 import statistics
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 import torch
 
+from warpskill.bench.outcomes import judged, record_outcomes
 from warpskill.contract.actions import ACTIONS
+from warpskill.contract.results_folder import ResultsFolder
 from warpskill.engine.projection import world_to_camera
+from warpskill.optimizer.options import OptimizeOptions
 
 
 def camera_frame_errors(recon, truth: dict[str, np.ndarray]) -> dict[str, float]:
@@ -69,16 +73,18 @@ def error_table(errors: dict[str, list[dict[str, float]]]) -> str:
 
 
 def bench_synthetic(
+    options: OptimizeOptions | None = None,
     *,
     seeds: int = 3,
     noise: str = "moderate",
     actions: Sequence[str] | None = None,
     out: Path | None = None,
-    device: str = "cpu",
-    iterations: int | None = None,
     input: str = "masks",
     known: Sequence[str] = (),
     seed_start: int = 0,
+    scenarios: str = "none",
+    baseline: Path | None = None,
+    save_baseline: Path | None = None,
 ) -> dict:
     """Reconstruct synthetic demonstrations of each action and print the paper's table.
 
@@ -87,26 +93,35 @@ def bench_synthetic(
     demonstration.
 
     Args:
+        options: the optimisation options (:class:`OptimizeOptions`); each case runs with
+            its own seed, once with ``init_only`` and once without (the two rows).
         input: ``"masks"`` or ``"boxes"`` (see :func:`warpskill.synthetic.make_demonstration`).
         known: names of lengths (:data:`warpskill.optimizer.known.KNOWN_LENGTHS`) given to
-            the optimiser at their true values, e.g. ``["object_height"]``.
+            the optimiser at each scene's true values, e.g. ``["object_height"]``
+            (``known_each`` of :func:`~warpskill.optimizer.optimize_many`).
         seed_start: the first seed (seeds ``seed_start .. seed_start + seeds - 1``).
+        scenarios: ``"real"`` mixes the real videos' situations into ``"boxes"`` demonstrations
+            (see :func:`warpskill.synthetic.make_demonstration`).
+        baseline, save_baseline: see :func:`warpskill.bench.outcomes.record_outcomes`; the
+            full method's per-case outcomes are also written to ``out`` (``outcomes.json``).
     """
     from warpskill.contract.evaluation import evaluate, success_table
-    from warpskill.optimizer.pipeline import optimize
     from warpskill.optimizer.known import check_known, measured
-    from warpskill.synthetic import make_demonstration
+    from warpskill.optimizer.pipeline import optimize_many
+    from warpskill.synthetic import make_demonstration, real_scenarios
 
     check_known({name: 1.0 for name in known})
+    options = options or OptimizeOptions()
 
     actions = list(actions or ACTIONS)
     rows: dict[str, list] = {"initialisation only": [], "full method": []}
     errors: dict[str, list] = {"initialisation only": [], "full method": []}
     seconds = []
+    outcomes = []
     with tempfile.TemporaryDirectory() as scratch:
         for action in actions:
             for seed in range(seed_start, seed_start + seeds):
-                demo = make_demonstration(action, seed=seed, noise=noise, input=input)
+                demo = make_demonstration(action, seed=seed, noise=noise, input=input, scenarios=scenarios)
                 t = {k: torch.as_tensor(np.asarray(demo.truth[k], dtype=np.float64))
                      for k in ("object_size", "static_size", "camera_height")}
                 given = {}
@@ -114,21 +129,25 @@ def bench_synthetic(
                     value = measured(name, t["object_size"], t["static_size"], t["camera_height"])
                     if value is not None:
                         given[name] = float(value)
-                folder = (out or Path(scratch)) / f"{action}_{seed}"
-                folder.mkdir(parents=True, exist_ok=True)
-                checkpoint = folder / "checkpoint.pt"
+                folder = ResultsFolder((out or Path(scratch)) / f"{action}_{seed}")
+                folder.path.mkdir(parents=True, exist_ok=True)
+                checkpoint = folder.checkpoint
                 start = time.perf_counter()
                 for row, init_only in (("initialisation only", True), ("full method", False)):
-                    recon = optimize(demo, device=device, iterations=iterations, seed=seed, progress=False,
-                                     init_only=init_only, checkpoint=checkpoint, known=given)
-                    ok = evaluate(recon, action).success
+                    [recon] = optimize_many([demo], replace(options, seed=seed, init_only=init_only),
+                                            known_each=[given], progress=False, checkpoint=checkpoint)
+                    evaluation = evaluate(recon, action)
+                    ok = evaluation.success
                     rows[row].append((action, ok))
                     errors[row].append(camera_frame_errors(recon, demo.truth))
                     if out is not None:
-                        recon.save(folder / ("initialisation.npz" if init_only else "reconstruction.npz"))
+                        folder.save(recon, folder.initialisation if init_only else folder.reconstruction)
                 seconds.append(time.perf_counter() - start)
+                situations = " ".join(real_scenarios(action, seed)) if scenarios == "real" else ""
+                outcomes.append(replace(judged(f"{action}_{seed}", evaluation, errors["full method"][-1]),
+                                        note=situations))
                 if out is not None:
-                    demo.save(folder / "demonstration.npz")
+                    folder.save(demo, folder.demonstration)
                 print(f"{action:<22} seed {seed}: init {'ok  ' if rows['initialisation only'][-1][1] else 'fail'}"
                       f" full {'ok  ' if rows['full method'][-1][1] else 'fail'}  {seconds[-1]:6.1f} s", flush=True)
 
@@ -136,6 +155,7 @@ def bench_synthetic(
     print(success_table(rows))
     print()
     print(error_table(errors))
-    print(f"time per demonstration (both stages, {device}): median {statistics.median(seconds):.1f} s, "
+    print(f"time per demonstration (both stages, {options.device or 'cpu'}): median {statistics.median(seconds):.1f} s, "
           f"max {max(seconds):.1f} s")
-    return {"rows": rows, "errors": errors, "seconds": seconds}
+    record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
+    return {"rows": rows, "errors": errors, "seconds": seconds, "outcomes": outcomes}

@@ -10,12 +10,19 @@
     warpskill evaluate RECON.npz [--action A]     the paper's success criteria
     warpskill retarget RECON.npz -o PLAN.npz      Panda plan (placo); also PLAN.csv
     warpskill replay PLAN.npz RECON.npz -o OUT    simulate the plan: OUT/replay.npz + success
+    warpskill retarget RECON.npz -o PLAN.npz --object-at X Y YAW [--static-at X Y YAW ...]
+                                                  the skill carried to another layout (yaw in degrees)
+    warpskill export mjcf SCENE.xml RECON.npz     the table, the cuboids and the Panda as MJCF (same layout options)
+    warpskill export lerobot OUT RECON... [--episodes N]
+                                                  successful rollouts in random layouts as a LeRobot dataset
     warpskill view OUT [-o SCENE.rrd] [--serve]   a Rerun recording of a results folder (3D scene)
     warpskill bench kernels [--device cpu|cuda]   Warp kernel microbenchmarks
     warpskill bench speed [--device cpu|cuda]     Warp engine vs plain-Torch reference, per iteration
     warpskill bench synthetic [--seeds N]         the paper's success table on synthetic data
     warpskill bench robot [--source truth|optimised] [--engines mujoco newton]
                                                   plan and replay the 9 actions x N seeds on the Panda
+    warpskill bench generalize RECON... [--layouts N] [--engines mujoco newton]
+                                                  each skill in random layouts: planned, succeeded, robust
     warpskill bench something-else --annotations A.json --phases P.csv --actions A.csv [-o OUT]
                                                   the same table on annotated real videos
 """
@@ -25,7 +32,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from warpskill.cli import bench, pipeline, prepare, robot, run, view
+from warpskill.cli import bench, export, pipeline, prepare, robot, run, view
+from warpskill.contract import ResultsFolderError
 
 __all__ = ["main"]
 
@@ -37,16 +45,21 @@ def main(argv: list[str] | None = None) -> int:
     if not hasattr(args, "run"):
         parser.print_help()
         return 2
+    from warpskill.warp_log import configure_warp_log  # imports Warp: not for --help
+
+    configure_warp_log(args.verbose)
     try:
         return args.run(args) or 0
-    except (ValueError, FileNotFoundError) as error:  # bad input: one clear line, no traceback
+    except (ValueError, FileNotFoundError, ResultsFolderError) as error:  # bad input, a full disk: one clear line
         print(f"warpskill: error: {error}", file=sys.stderr)
         return 1
 
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="warpskill", description="Learn a manipulation skill from one video.")
+    parser.add_argument("--verbose", action="store_true",
+                        help="show Warp's messages (module loads and compiles); before the command: warpskill --verbose demo")
     commands = parser.add_subparsers(title="commands")
-    for module in (pipeline, prepare, run, robot, bench, view):
+    for module in (pipeline, prepare, run, robot, export, bench, view):
         module.register(commands)
     return parser

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from warpskill.cli.common import add_optimize_options, optimize_options
+
 __all__ = ["register"]
 
 
@@ -29,13 +31,13 @@ def register(commands) -> None:
     synthetic.add_argument("--noise", default="moderate", help="none, low, moderate or high")
     synthetic.add_argument("--actions", nargs="*", help="a subset of the actions (default: all 9)")
     synthetic.add_argument("-o", "--out", type=Path, help="also write every demonstration and reconstruction here")
-    synthetic.add_argument("--device", default="cpu", help="cpu or cuda")
-    synthetic.add_argument("--iterations", type=int, help="physics-stage iterations (default: the library's)")
     synthetic.add_argument("--input", choices=("masks", "boxes"), default="masks",
                            help="true silhouettes with mask noise, or ellipses in their boxes as for Something-Else")
-    synthetic.add_argument("--known", nargs="*", default=[], metavar="NAME",
-                           help="lengths given to the optimiser at their true values, e.g. object_height")
     synthetic.add_argument("--seed-start", type=int, default=0, help="first seed")
+    synthetic.add_argument("--scenarios", choices=("none", "real"), default="none",
+                           help="with --input boxes: also the held-out real videos' situations (mixed in by seed)")
+    add_optimize_options(synthetic, known_names=True)
+    _add_baseline_options(synthetic)
     synthetic.set_defaults(run=_bench_synthetic)
     robot = bench.add_parser("robot", help="retarget synthetic reconstructions to the Panda and replay them")
     robot.add_argument("--seeds", type=int, default=3, help="seeds per action (default: 3)")
@@ -45,17 +47,25 @@ def register(commands) -> None:
                        help="replay engines (default: mujoco)")
     robot.add_argument("--actions", nargs="*", help="a subset of the actions (default: all 9)")
     robot.add_argument("-o", "--out", type=Path, help="keep reconstructions and plans here (reused on a rerun)")
-    robot.add_argument("--device", default="cpu", help="cpu or cuda (for --source optimised)")
     robot.add_argument("--video", action="store_true", help="also write OUT/<case>/replay.mp4 (needs -o)")
+    add_optimize_options(robot)  # for --source optimised; --device is also Newton's
     robot.set_defaults(run=_bench_robot)
+    generalize = bench.add_parser("generalize", help="each skill in random layouts: planned, succeeded, robust")
+    generalize.add_argument("reconstructions", type=Path, nargs="+", help="reconstruction .npz files")
+    generalize.add_argument("--layouts", type=int, default=10, help="random layouts per skill (default: 10)")
+    generalize.add_argument("--engines", nargs="+", choices=("mujoco", "newton"), default=["mujoco"],
+                            help="replay engines (default: mujoco)")
+    generalize.add_argument("--seed", type=int, default=0, help="seed of the layouts")
+    generalize.add_argument("--device", default="cpu", help="Warp device of Newton")
+    generalize.add_argument("--no-robust", dest="robust", action="store_false",
+                            help="skip the perturbed replays (the robust row)")
+    generalize.set_defaults(run=_bench_generalize)
     real = bench.add_parser("something-else", help="the paper's success table on annotated real videos")
     real.add_argument("--annotations", type=Path, required=True, help="Something-Else boxes (JSON)")
     real.add_argument("--phases", type=Path, required=True, help="action phases (CSV)")
     real.add_argument("--actions", type=Path, required=True, help="video_id,action (CSV)")
     real.add_argument("-o", "--out", type=Path, default=Path("warpskill-out/something-else"), help="output folder")
     real.add_argument("--videos", nargs="*", help="a subset of the video ids (default: all)")
-    real.add_argument("--device", default="cpu", help="cpu or cuda")
-    real.add_argument("--iterations", type=int, help="physics-stage iterations (default: the library's)")
     real.add_argument("--workers", type=int, metavar="N",
                       help="reconstruct on N Ray workers at a time (one per core; needs the cluster extra)")
     real.add_argument("--ray-address", metavar="ADDR", help="join this Ray cluster (default: $RAY_ADDRESS)")
@@ -64,7 +74,41 @@ def register(commands) -> None:
     real.add_argument("--engines", nargs="+", choices=("mujoco", "newton"), default=["mujoco", "newton"],
                       help="replay engines of --robot")
     real.add_argument("--video", action="store_true", help="with --robot, also write OUT/<video>/replay.mp4")
+    add_optimize_options(real)
+    _add_baseline_options(real)
     real.set_defaults(run=_bench_something_else)
+    second = bench.add_parser("second-opinion",
+                              help="an independent generator's scenes through the Something-Else reader")
+    second.add_argument("-o", "--out", type=Path, default=Path("warpskill-out/second-opinion"), help="output folder")
+    second.add_argument("--seeds", type=_seed_range, default=range(1, 11), help="seeds, e.g. 1..10 (default)")
+    second.add_argument("--actions", nargs="*", help="a subset of the actions (default: all 9)")
+    second.add_argument("--exit-view", action="store_true", help="pick-ups lifted out of the top of the view")
+    second.add_argument("--noise", type=int, choices=(0, 1, 2), default=0, help="the generator's noise level")
+    second.add_argument("--tools", type=Path, help="folder of synthdemo.py and synth_sthelse.py "
+                        "(default: $WARPSKILL_TOOLS, else ../shared/tools beside the repository)")
+    add_optimize_options(second)
+    _add_baseline_options(second)
+    second.set_defaults(run=_bench_second_opinion)
+    flips = bench.add_parser("flips", help="the cases that flipped between two outcome tables or output folders")
+    flips.add_argument("baseline", type=Path, help="outcomes.json, or a benchmark's output folder")
+    flips.add_argument("current", type=Path, help="outcomes.json, or a benchmark's output folder")
+    flips.set_defaults(run=_bench_flips)
+
+
+def _add_baseline_options(parser) -> None:
+    """``--baseline`` and ``--save-baseline`` of the success benchmarks."""
+    parser.add_argument("--baseline", type=Path, metavar="FILE",
+                        help="print every case that flipped since this outcome table or output folder")
+    parser.add_argument("--save-baseline", type=Path, metavar="FILE", help="also save this run's outcome table here")
+
+
+def _seed_range(text: str) -> range:
+    """'1..10' -> range(1, 11); '7' -> range(7, 8)."""
+    first, _, last = text.partition("..")
+    try:
+        return range(int(first), int(last or first) + 1)
+    except ValueError:
+        raise ValueError(f"--seeds: expected FIRST..LAST or one seed, got {text!r}") from None
 
 
 def _bench_kernels(args) -> int:
@@ -90,10 +134,12 @@ def _bench_speed(args) -> int:
 def _bench_synthetic(args) -> int:
     from warpskill.bench.synthetic import bench_synthetic
 
-    bench_synthetic(
-        seeds=args.seeds, noise=args.noise, actions=args.actions, out=args.out, device=args.device,
-        iterations=args.iterations, input=args.input, known=args.known, seed_start=args.seed_start,
-    )
+    options = optimize_options(args, cannot=dict(
+        seed="each case is optimised with its own seed (--seeds, --seed-start)",
+        init_only="the table already has the initialisation-only row"))
+    bench_synthetic(options, seeds=args.seeds, noise=args.noise, actions=args.actions, out=args.out, input=args.input,
+                    known=args.known_names, seed_start=args.seed_start, scenarios=args.scenarios,
+                    baseline=args.baseline, save_baseline=args.save_baseline)
     return 0
 
 
@@ -102,8 +148,23 @@ def _bench_robot(args) -> int:
 
     if args.video and args.out is None:
         raise ValueError("--video needs an output folder: -o OUT")
-    bench_robot(seeds=args.seeds, source=args.source, engines=args.engines, actions=args.actions, out=args.out,
-                device=args.device, video=args.video)
+    cannot = dict(seed="each case is optimised with its own seed (--seeds)",
+                  init_only="the robot is planned on the full method's reconstructions")
+    if args.source == "truth":
+        cannot.update({name: "--source truth optimises nothing" for name in ("iterations", "known", "settings")})
+    options = optimize_options(args, cannot=cannot)
+    bench_robot(options, seeds=args.seeds, source=args.source, engines=args.engines, actions=args.actions,
+                out=args.out, video=args.video)
+    return 0
+
+
+def _bench_generalize(args) -> int:
+    from warpskill.bench.generalize import bench_generalize
+    from warpskill.contract import Reconstruction
+
+    recons = {str(path): Reconstruction.load(path) for path in args.reconstructions}
+    bench_generalize(recons, layouts=args.layouts, engines=args.engines, seed=args.seed, device=args.device,
+                     robust=args.robust)
     return 0
 
 
@@ -113,8 +174,24 @@ def _bench_something_else(args) -> int:
     if args.video and not args.robot:
         raise ValueError("--video needs --robot")
     bench_something_else(
-        args.annotations, args.phases, args.actions, out=args.out, iterations=args.iterations,
-        device=args.device, videos=args.videos, workers=args.workers, address=args.ray_address,
-        robot=args.robot, engines=args.engines, video=args.video,
+        args.annotations, args.phases, args.actions, optimize_options(args), out=args.out, videos=args.videos,
+        workers=args.workers, address=args.ray_address, robot=args.robot, engines=args.engines, video=args.video,
+        baseline=args.baseline, save_baseline=args.save_baseline,
     )
+    return 0
+
+
+def _bench_second_opinion(args) -> int:
+    from warpskill.bench.second_opinion import bench_second_opinion
+
+    result = bench_second_opinion(args.out, optimize_options(args), seeds=args.seeds, actions=args.actions,
+                                  exit_view=args.exit_view, noise=args.noise, tools=args.tools,
+                                  baseline=args.baseline, save_baseline=args.save_baseline)
+    return 0 if result is not None else 1
+
+
+def _bench_flips(args) -> int:
+    from warpskill.bench.outcomes import flip_report, load_outcomes
+
+    print(flip_report(load_outcomes(args.baseline), load_outcomes(args.current), name=str(args.baseline)))
     return 0

@@ -4,22 +4,85 @@ from __future__ import annotations
 
 import argparse
 import importlib.metadata
+import contextlib
+import functools
 import math
+from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING, Callable
 
-__all__ = ["add_optimise_options", "add_placement_options", "installed", "placement", "robot_steps_available", "reconstruct", "report", "save_plan",
-           "save_scene"]
+from warpskill.contract import ResultsFolder
+
+if TYPE_CHECKING:  # the optimiser pulls in torch and Warp: imported where used, so the command line starts fast
+    from warpskill.optimizer import OptimizeOptions
+
+__all__ = ["add_optimize_options", "add_placement_options", "installed", "optimize_options", "placement",
+           "robot_steps_available", "reconstruct", "holding_out", "report", "save_plan", "save_scene"]
+
+OPTIMIZE_FLAGS = {"device": "--device", "iterations": "--iterations", "seed": "--seed", "init_only": "--init-only",
+                  "known": "--known", "settings": "--set"}
+"""The options of :func:`add_optimize_options`: ``args`` attribute -> flag."""
 
 
-def add_optimise_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--device", default=None, help="cpu (default) or cuda")
-    parser.add_argument("--iterations", type=int, default=None, help="physics-stage iterations")
-    parser.add_argument("--seed", type=int, default=0, help="Torch seed (results are deterministic per seed and device)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bars")
-    parser.add_argument("--known", nargs="+", default=None, metavar="NAME=METRES",
-                        help="lengths known in advance, which fix the scene's scale, e.g. object_height=0.10 "
-                             "(also object_width, object_depth, camera_height, static_height, static_width, "
-                             "static_depth)")
+def add_optimize_options(parser: argparse.ArgumentParser, *, known_names: bool = False) -> None:
+    """The optimisation options every optimising command shares (one :class:`OptimizeOptions`,
+    saved as the reconstruction's ``options``, docs/formats.md), and ``--quiet``.
+
+    ``known_names``: ``--known`` takes names whose true values the command knows
+    (``bench synthetic``), not NAME=METRES; they land in ``args.known_names``, not in the options.
+    """
+    group = parser.add_argument_group("optimisation (saved as the reconstruction's options, docs/formats.md)")
+    group.add_argument("--device", default=None, help="cpu (default) or cuda")
+    group.add_argument("--iterations", type=int, default=None, help="physics-stage iterations (config.iterations)")
+    group.add_argument("--seed", type=int, default=None,
+                       help="Torch seed, default 0 (results are deterministic per seed and device)")
+    group.add_argument("--init-only", action="store_true", help="stop after the physics-free initialisation")
+    names = "(also object_width, object_depth, camera_height, static_height, static_width, static_depth)"
+    if known_names:
+        group.add_argument("--known", dest="known_names", nargs="+", default=[], metavar="NAME",
+                           help=f"lengths given to the optimiser at each scene's true values, e.g. object_height {names}")
+        parser.set_defaults(known=None)
+    else:
+        group.add_argument("--known", nargs="+", default=None, metavar="NAME=METRES",
+                           help=f"lengths known in advance, which fix the scene's scale, e.g. object_height=0.10 {names}")
+    group.add_argument("--set", dest="settings", action="append", default=[], metavar="PATH=VALUE",
+                       help="any setting of the options by its dotted path, e.g. config.init_iterations=100 or "
+                            "config.weights.grasp_margin=0.01 (repeatable)")
+    group.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def optimize_options(args: argparse.Namespace, *, cannot: Mapping[str, str] | None = None) -> OptimizeOptions:
+    """The :class:`OptimizeOptions` of the options of :func:`add_optimize_options` in ``args``.
+
+    Args:
+        args: the parsed command line.
+        cannot: ``args`` attribute (a key of :data:`OPTIMIZE_FLAGS`) -> why this command
+            cannot honour that option; given, it is refused.
+
+    Raises:
+        ValueError: a refused option (naming it and why), a malformed ``--known`` or ``--set``.
+    """
+    from warpskill.optimizer import OptimizeOptions, parse_known
+
+    for name, why in (cannot or {}).items():
+        if getattr(args, name) not in (None, False, []):
+            raise ValueError(f"{OPTIMIZE_FLAGS[name]} cannot be used here: {why}")
+    options = OptimizeOptions.build(device=args.device, seed=0 if args.seed is None else args.seed,
+                                    init_only=args.init_only, known=parse_known(args.known),
+                                    iterations=args.iterations)
+    return options.with_settings(args.settings)
+
+
+def holding_out(command: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+    """``command(args)`` holding the lock of its results folder ``args.out`` (waits while another
+    command writes it: :meth:`~warpskill.contract.results_folder.ResultsFolder.locked`)."""
+
+    @functools.wraps(command)
+    def locked(args: argparse.Namespace) -> int:
+        with ResultsFolder(args.out).locked():
+            return command(args)
+
+    return locked
 
 
 def add_placement_options(parser: argparse.ArgumentParser) -> None:
@@ -43,35 +106,27 @@ def placement(args):
     return Placement(offset=offset, yaw=yaw)
 
 
-def reconstruct(demos, folders: list[Path], checkpoint: Path, args, *, init_only: bool = False,
-                 pictures: bool = True):
-    """Optimise ``demos`` together (resuming ``checkpoint``); write each npz and pictures into its folder."""
+def reconstruct(demos, folders: list[Path], checkpoint: Path, options: OptimizeOptions, *, quiet: bool = False,
+                pictures: bool = True):
+    """Optimise ``demos`` together with ``options`` (resuming ``checkpoint``); write each npz and
+    pictures into its folder."""
     from warpskill.engine import resolve_device
-    from warpskill.optimizer import optimize_many, parse_known
+    from warpskill.optimizer import optimize_many
     from warpskill.visual import save_pictures
 
-    resolve_device(args.device)
-    known = parse_known(getattr(args, "known", None))
-    checkpoint.parent.mkdir(parents=True, exist_ok=True)
-    reconstructions = optimize_many(
-        demos,
-        device=args.device,
-        iterations=args.iterations,
-        seed=args.seed,
-        progress=not args.quiet,
-        init_only=init_only,
-        checkpoint=checkpoint,
-        known=known,
-    )
-    for demo, recon, out in zip(demos, reconstructions, folders):
-        out.mkdir(parents=True, exist_ok=True)
-        recon.save(out / "reconstruction.npz")
-        print(f"reconstruction: {out / 'reconstruction.npz'}")
-        if pictures:
-            for name, path in save_pictures(recon, demo, out).items():
-                print(f"{name}: {path}")
-            save_scene(recon, demo, out)
-        report(recon, demo.action)
+    resolve_device(options.device)  # a bad device is one error line before any work
+    with contextlib.ExitStack() as holding:  # the checkpoint's folder and each output folder: this process alone
+        for folder in sorted({checkpoint.parent, *folders}):
+            holding.enter_context(ResultsFolder(folder).locked())
+        reconstructions = optimize_many(demos, options, progress=not quiet, checkpoint=checkpoint)
+        for demo, recon, out in zip(demos, reconstructions, folders):
+            keeper = ResultsFolder(out)
+            print(f"reconstruction: {keeper.save(recon, keeper.reconstruction)}")
+            if pictures:
+                for name, path in save_pictures(recon, demo, out).items():
+                    print(f"{name}: {path}")
+                save_scene(recon, demo, out)
+            report(recon, demo.action)
     return reconstructions
 
 
@@ -99,12 +154,18 @@ def save_plan(plan, path: Path) -> None:
         print(plan.note)
 
 
-def save_scene(recon, demo, out: Path, plan=None, replay=None, *, quiet: bool = False) -> None:
-    """Write ``out/scene.rrd`` (the 3D Rerun recording) and say so; without rerun-sdk, say how to get it."""
+def save_scene(recon, demo, out: Path, plan=None, replay=None, *, frames=None, quiet: bool = False) -> None:
+    """Write ``out/scene.rrd`` (the 3D Rerun recording, with the video ``frames`` when given) and
+    say so; without rerun-sdk, say how to get it."""
     from warpskill.visual import view
 
     try:
-        path = view(recon, demo, plan, replay, path=out / "scene.rrd")
+        robot = None
+        if plan is not None:
+            from warpskill.robot import robot_track
+
+            robot = robot_track(plan, float(recon.fps), replay)
+        path = view(recon, demo, robot, replay, frames=frames, path=out / "scene.rrd")
     except ModuleNotFoundError as error:
         if error.name != "rerun":
             raise

@@ -5,8 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from warpskill.cli.common import (
-    add_optimise_options,
+    add_optimize_options,
     add_placement_options,
+    holding_out,
+    optimize_options,
     placement,
     reconstruct,
     report,
@@ -14,6 +16,7 @@ from warpskill.cli.common import (
     save_plan,
     save_scene,
 )
+from warpskill.contract import ResultsFolder
 
 __all__ = ["register"]
 
@@ -24,42 +27,42 @@ def register(commands) -> None:
     demo.add_argument("-o", "--out", type=Path, default=Path("warpskill-out/demo"), help="output folder")
     demo.add_argument("--action", default="put_onto", help="which action to synthesise (default: put_onto)")
     demo.add_argument("--no-robot", action="store_true", help="stop after the reconstruction (no Panda plan or replay)")
-    add_optimise_options(demo)
+    add_optimize_options(demo)
     add_placement_options(demo)
     demo.set_defaults(run=_demo)
 
-    optimise = commands.add_parser("optimize", help="reconstruct demonstration .npz files (several: together)")
-    optimise.add_argument("demos", type=Path, nargs="+", metavar="demo",
-                          help="demonstration .npz (FORMATS.md); several are optimised side by side")
-    optimise.add_argument("-o", "--out", type=Path, required=True,
+    optimize = commands.add_parser("optimize", help="reconstruct demonstration .npz files (several: together)")
+    optimize.add_argument("demos", type=Path, nargs="+", metavar="demo",
+                          help="demonstration .npz (docs/formats.md); several are optimised side by side")
+    optimize.add_argument("-o", "--out", type=Path, required=True,
                           help="output folder (with several demonstrations: OUT/<file name>/ each)")
-    optimise.add_argument("--init-only", action="store_true", help="stop after the physics-free initialisation")
-    optimise.add_argument("--no-pictures", action="store_true", help="skip the pictures")
-    optimise.add_argument("--workers", type=int, metavar="N",
+    optimize.add_argument("--no-pictures", action="store_true", help="skip the pictures")
+    optimize.add_argument("--workers", type=int, metavar="N",
                           help="spread the demonstrations over N Ray workers (one per core; on CUDA one per GPU): "
                                "OUT/<name>/ each, finished ones skipped on a rerun (needs the cluster extra)")
-    optimise.add_argument("--ray-address", metavar="ADDR",
+    optimize.add_argument("--ray-address", metavar="ADDR",
                           help="join this Ray cluster instead of starting a local one (default: $RAY_ADDRESS)")
-    add_optimise_options(optimise)
-    optimise.set_defaults(run=_optimize)
+    add_optimize_options(optimize)
+    optimize.set_defaults(run=_optimize)
 
     evaluate = commands.add_parser("evaluate", help="check a reconstruction against the paper's success criteria")
-    evaluate.add_argument("reconstruction", type=Path, help="reconstruction .npz (FORMATS.md)")
+    evaluate.add_argument("reconstruction", type=Path, help="reconstruction .npz (docs/formats.md)")
     evaluate.add_argument("--action", help="action name (default: the one stored in the file)")
     evaluate.add_argument("--mode", choices=("strict", "original"), default="strict")
     evaluate.set_defaults(run=_evaluate)
 
 
+@holding_out
 def _demo(args) -> int:
     from warpskill import make_demonstration
     from warpskill.robot import prefer_headless_gl
 
+    options = optimize_options(args)
     prefer_headless_gl()
-    demo = make_demonstration(args.action, seed=args.seed)
-    args.out.mkdir(parents=True, exist_ok=True)
-    demo.save(args.out / "demonstration.npz")
-    print(f"demonstration: {args.out / 'demonstration.npz'} ({args.action}, {demo.num_frames} frames)")
-    [recon] = reconstruct([demo], [args.out], args.out / "checkpoint.pt", args)
+    demo = make_demonstration(args.action, seed=options.seed)
+    keeper = ResultsFolder(args.out)
+    print(f"demonstration: {keeper.save(demo, keeper.demonstration)} ({args.action}, {demo.num_frames} frames)")
+    [recon] = reconstruct([demo], [args.out], keeper.checkpoint, options, quiet=args.quiet)
     if args.no_robot:
         return 0
     if not robot_steps_available():
@@ -71,10 +74,9 @@ def _demo(args) -> int:
     except PlanError as error:
         print(f"robot plan: none: {error}")
         return 0
-    save_plan(plan, args.out / "plan.npz")
+    save_plan(plan, keeper.plan)
     result = replay(plan, recon)
-    result.save(args.out / "replay.npz")
-    print(f"replay: {args.out / 'replay.npz'} (mujoco, {result.replay_time:.2f} s); "
+    print(f"replay: {keeper.save(result, keeper.replay)} (mujoco, {result.replay_time:.2f} s); "
           f"picture: {record(plan, recon, result, args.out)}")
     save_scene(recon, demo, args.out, plan, result, quiet=True)  # scene.rrd again, with the robot
     report(result.reconstruction, args.action)
@@ -84,6 +86,7 @@ def _demo(args) -> int:
 def _optimize(args) -> int:
     from warpskill.contract import Demonstration
 
+    options = optimize_options(args)
     stems = [path.stem for path in args.demos]
     if len(set(stems)) < len(stems):
         raise ValueError("demonstration files must have different names: each gets OUT/<name>/")
@@ -91,16 +94,15 @@ def _optimize(args) -> int:
         from warpskill.cluster import INSTALL_HINT, ray_available
 
         if ray_available():
-            return _optimize_on_ray(args, stems)
+            return _optimize_on_ray(args, options, stems)
         print(f"--workers needs Ray, which is not installed ({INSTALL_HINT}): optimising serially")
     demos = [Demonstration.load(path) for path in args.demos]
     folders = [args.out] if len(demos) == 1 else [args.out / stem for stem in stems]
-    reconstruct(demos, folders, args.out / "checkpoint.pt", args, init_only=args.init_only,
-                 pictures=not args.no_pictures)
+    reconstruct(demos, folders, ResultsFolder(args.out).checkpoint, options, quiet=args.quiet, pictures=not args.no_pictures)
     return 0
 
 
-def _optimize_on_ray(args, stems: list[str]) -> int:
+def _optimize_on_ray(args, options, stems: list[str]) -> int:
     """``optimize --workers N``: each demonstration a Ray task into OUT/<name>/; one progress bar, a summary."""
     from warpskill.cluster import optimize_folder
     from warpskill.contract import Reconstruction
@@ -110,11 +112,10 @@ def _optimize_on_ray(args, stems: list[str]) -> int:
     if not args.ray_address:
         from warpskill.engine import resolve_device
 
-        resolve_device(args.device)  # a bad device is one error line, not one failure per demonstration
+        resolve_device(options.device)  # a bad device is one error line, not one failure per demonstration
     summary = optimize_folder(
-        dict(zip(stems, args.demos)), args.out, workers=args.workers, address=args.ray_address, device=args.device,
-        iterations=args.iterations, seed=args.seed, progress=not args.quiet, init_only=args.init_only,
-        postprocess=None if args.no_pictures else _pictures,
+        dict(zip(stems, args.demos)), args.out, options, workers=args.workers, address=args.ray_address,
+        progress=not args.quiet, postprocess=None if args.no_pictures else _pictures,
     )
     for outcome in summary.outcomes.values():
         if outcome.ok:

@@ -15,7 +15,7 @@ def register(commands) -> None:
     )
     add_recording_options(parser)
     parser.add_argument("-o", "--out", type=Path, required=True,
-                        help="demonstration .npz (FORMATS.md); the contact sheet goes beside it (.png)")
+                        help="demonstration .npz (docs/formats.md); the contact sheet goes beside it (.png)")
     parser.set_defaults(run=_prepare)
 
 

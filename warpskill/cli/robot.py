@@ -2,14 +2,19 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
+import sys
 from pathlib import Path
 
 from warpskill.cli.common import (
     add_placement_options,
+    holding_out,
     placement,
     report,
     save_plan,
 )
+from warpskill.contract import ResultsFolder
 
 __all__ = ["register"]
 
@@ -17,12 +22,14 @@ __all__ = ["register"]
 def register(commands) -> None:
     """Add ``retarget`` and ``replay`` to the ``commands`` sub-parsers."""
     retarget = commands.add_parser("retarget", help="plan a Franka Panda motion for a reconstruction (placo)")
-    retarget.add_argument("reconstruction", type=Path, help="reconstruction .npz (FORMATS.md)")
+    retarget.add_argument("reconstruction", type=Path, help="reconstruction .npz (docs/formats.md)")
     retarget.add_argument("-o", "--out", type=Path, required=True, help="plan .npz (a .csv is written beside it)")
     add_placement_options(retarget)
+    add_layout_options(retarget)
     retarget.add_argument("--object-size", type=float, nargs=3, default=None, metavar=("X", "Y", "Z"),
                           help="the robot's object [m] (default: the reconstructed cuboid, or one that fits the "
-                               "gripper); the demonstrated centre path is kept")
+                               "gripper); the demonstrated centre path is kept; with --object-at or --static-at, "
+                               "the layout's object")
     retarget.add_argument("--static-size", type=float, nargs=3, action="append", default=None,
                           metavar=("X", "Y", "Z"), help="a static object's size [m]; once per static object")
     retarget.add_argument("--keep-size", action="store_true",
@@ -38,16 +45,61 @@ def register(commands) -> None:
     replay.set_defaults(run=_replay)
 
 
+def add_layout_options(parser) -> None:
+    """``--object-at`` and ``--static-at``: carry the skill to another layout (with ``--object-size``)."""
+    parser.add_argument("--object-at", type=float, nargs=3, default=None, metavar=("X", "Y", "YAW"),
+                        help="run the skill with the object starting here: world x, y [m] and yaw [deg] "
+                             "(default: where the demonstration had it)")
+    parser.add_argument("--static-at", type=float, nargs=3, action="append", default=None,
+                        metavar=("X", "Y", "YAW"),
+                        help="a static box here: world x, y [m], yaw [deg]; once per static box, in the "
+                             "reconstruction's order (default: where the demonstration had them)")
+
+
+def layout_from(args, recon):
+    """The :class:`~warpskill.contract.skill.Layout` of ``--object-at``, ``--static-at`` and
+    ``--object-size`` (degrees to radians) for ``recon``'s skill, or None where none is given."""
+    from warpskill.contract import skill_from
+
+    if args.object_at is None and args.static_at is None:
+        return None
+    layout = skill_from(recon).layout
+    if args.object_at is not None:
+        x, y, yaw = args.object_at
+        layout = dataclasses.replace(layout, object=(x, y, math.radians(yaw)))
+    if args.static_at is not None:
+        layout = dataclasses.replace(layout, statics=tuple((x, y, math.radians(yaw)) for x, y, yaw in args.static_at))
+    return dataclasses.replace(layout, object_size=args.object_size)
+
+
+def refused(error) -> int:
+    """Print a refused layout's line; the exit status 2."""
+    print(f"warpskill: error: {error}", file=sys.stderr)
+    return 2
+
+
 def _retarget(args) -> int:
-    from warpskill.contract import Reconstruction
+    from warpskill.contract import LayoutError, Reconstruction, skill_from
     from warpskill.robot import retarget
 
-    plan = retarget(Reconstruction.load(args.reconstruction), placement=placement(args),
-                    object_size=args.object_size, static_sizes=args.static_size, keep_size=args.keep_size)
+    recon = Reconstruction.load(args.reconstruction)
+    try:
+        layout = layout_from(args, recon)
+        plan = retarget(recon, layout=layout, placement=placement(args), static_sizes=args.static_size,
+                        keep_size=args.keep_size, object_size=None if layout is not None else args.object_size)
+    except LayoutError as error:
+        return refused(error)
     save_plan(plan, args.out)
+    if layout is not None:
+        print(f"layout: {layout.describe()}")
+    if str(recon.action):  # what the video teaches, beside the reconstruction (docs/formats.md)
+        skill_path = args.reconstruction.with_name("skill.npz")
+        skill_from(recon).save(skill_path)
+        print(f"skill: {skill_path}")
     return 0
 
 
+@holding_out
 def _replay(args) -> int:
     from warpskill.robot import prefer_headless_gl
 
@@ -59,8 +111,8 @@ def _replay(args) -> int:
     plan = RobotPlan.load(args.plan)
     args.out.mkdir(parents=True, exist_ok=True)
     result = replay(plan, recon, engine=args.engine)
-    result.save(args.out / "replay.npz")
-    print(f"replay: {args.out / 'replay.npz'} ({args.engine}, {result.replay_time:.2f} s)")
+    keeper = ResultsFolder(args.out)
+    print(f"replay: {keeper.save(result, keeper.replay)} ({args.engine}, {result.replay_time:.2f} s)")
     if args.video:
         print(f"video: {record(plan, plan.scene(recon), result, args.out)}")
     report(result.reconstruction, result.evaluation.action)

@@ -8,19 +8,23 @@ The steps and what each writes under OUT/:
     replay     replay.npz
     (then)     scene.rrd, the 3D Rerun recording of all of it (with rerun-sdk)
 
-A step is finished when its output file exists and loads; a rerun skips finished steps and
-redoes every step after one it had to redo. Exit status: 0 when the replay succeeds (or
+A step is finished when its output file exists and loads (and, for the reconstruction, was
+made with the options asked now, its ``options`` of docs/formats.md, the device aside); a
+rerun skips finished steps and redoes every step after one it had to redo. Exit status: 0 when the replay succeeds (or
 the robot steps are skipped, placo / MuJoCo missing), 3 when a step stopped the run (no
 robot plan) or the replay fails the action's criteria, 1 for bad input.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 from warpskill.cli.common import (
-    add_optimise_options,
+    add_optimize_options,
     add_placement_options,
+    holding_out,
+    optimize_options,
     placement,
     reconstruct,
     report,
@@ -29,6 +33,7 @@ from warpskill.cli.common import (
     save_scene,
 )
 from warpskill.cli.prepare import add_recording_options, prepare
+from warpskill.contract import ResultsFolder
 
 __all__ = ["register"]
 
@@ -41,19 +46,21 @@ def register(commands) -> None:
     parser.add_argument("-o", "--out", type=Path, required=True, help="output folder")
     parser.add_argument("--engine", choices=("mujoco", "newton"), default="mujoco", help="replay engine")
     parser.add_argument("--no-robot", action="store_true", help="stop after the reconstruction")
-    add_optimise_options(parser)
+    add_optimize_options(parser)
     add_placement_options(parser)
     parser.set_defaults(run=_run)
 
 
+@holding_out
 def _run(args) -> int:
-    from warpskill.contract import Demonstration, Reconstruction
     from warpskill.visual import save_pictures
 
+    options = optimize_options(args)
     out = args.out
-    demo_path, sheet_path = out / "demonstration.npz", out / "demo.png"
+    keeper = ResultsFolder(out)
+    demo_path, sheet_path = keeper.demonstration, out / "demo.png"
     redo = False
-    demo = _loaded(Demonstration.load, demo_path) if sheet_path.is_file() else None
+    demo = keeper.finished_demonstration() if sheet_path.is_file() else None
     frames = None
     if demo is None:
         redo = True
@@ -61,13 +68,16 @@ def _run(args) -> int:
     else:
         print(f"prepare: done, skipped ({demo_path}, {sheet_path})")
 
-    recon_path = out / "reconstruction.npz"
-    recon = None if redo else _loaded(Reconstruction.load, recon_path)
+    recon_path = keeper.reconstruction
+    recon = None if redo else keeper.finished_reconstruction()
+    if recon is not None and not _made_with(recon, options):
+        print(f"{recon_path}: made with other options; redoing the step")
+        recon = None
     if recon is None:
         redo = True
         if frames is None:
             frames = _frames(args.video, demo)
-        [recon] = reconstruct([demo], [out], out / "checkpoint.pt", args, pictures=False)
+        [recon] = reconstruct([demo], [out], keeper.checkpoint, options, quiet=args.quiet, pictures=False)
         for name, path in save_pictures(recon, demo, out, background=frames).items():
             print(f"{name}: {path}")
     else:
@@ -75,10 +85,10 @@ def _run(args) -> int:
         report(recon, demo.action)
 
     if args.no_robot:
-        _scene(recon, demo, out, redo)
+        _scene(recon, demo, args.video, out, redo)
         return 0
     if not robot_steps_available():
-        _scene(recon, demo, out, redo)
+        _scene(recon, demo, args.video, out, redo)
         return 0
     from warpskill.robot import (
         PlanError,
@@ -89,51 +99,52 @@ def _run(args) -> int:
     )
 
     prefer_headless_gl()
-    from warpskill import Replay
 
-    plan_path = out / "plan.npz"
-    plan = None if redo or not plan_path.with_suffix(".csv").is_file() else _loaded(RobotPlan.load, plan_path)
+    plan_path = keeper.plan
+    plan = None if redo or not keeper.plan_csv.is_file() else keeper.load_finished(plan_path, RobotPlan.load)
     if plan is None:
         redo = True
         try:
             plan = retarget(recon, placement=placement(args))
         except PlanError as error:
             print(f"retarget: stopped, no robot plan: {error}")
-            _scene(recon, demo, out, redo)
+            _scene(recon, demo, args.video, out, redo)
             return 3
         save_plan(plan, plan_path)
     else:
         print(f"retarget: done, skipped ({plan_path})")
 
-    replay_path = out / "replay.npz"
-    result = None if redo else _loaded(Replay.load, replay_path)
+    replay_path = keeper.replay
+    result = None if redo else keeper.finished_replay()
     if result is None:
         redo = True
         result = replay(plan, recon, engine=args.engine)
-        result.save(replay_path)
+        keeper.save(result, replay_path)
         print(f"replay: {replay_path} ({args.engine}, {result.replay_time:.2f} s)")
     else:
         print(f"replay: done, skipped ({replay_path})")
     report(result.reconstruction, demo.action)
-    _scene(recon, demo, out, redo, plan, result)
+    _scene(recon, demo, args.video, out, redo, plan, result)
     return 0 if result.success else 3
 
 
-def _scene(recon, demo, out: Path, redo: bool, plan=None, result=None) -> None:
-    """The 3D recording (``scene.rrd``) of what exists, unless nothing changed since it was written."""
+def _scene(recon, demo, video: Path, out: Path, redo: bool, plan=None, result=None) -> None:
+    """The 3D recording (``scene.rrd``) of what exists, the video's frames included, unless nothing
+    changed since it was written."""
     if redo or not (out / "scene.rrd").is_file():
-        save_scene(recon, demo, out, plan, result)
+        save_scene(recon, demo, out, plan, result, frames=_frames(video, demo))
 
 
-def _loaded(load, path: Path):
-    """``load(path)``, or None when the file is missing or does not load (then the step is redone)."""
-    if not path.is_file():
-        return None
+def _made_with(recon, options) -> bool:
+    """Whether ``recon`` records ``options`` as those that made it, the device aside (it changes
+    only the rounding); a reconstruction that records none, or unreadable ones, was not."""
+    from warpskill.optimizer import OptimizeOptions
+
     try:
-        return load(path)
-    except (ValueError, OSError) as error:
-        print(f"{path}: does not load ({error}); redoing the step")
-        return None
+        made = OptimizeOptions.from_json(str(recon.options))
+    except (ValueError, TypeError):  # none recorded (""), or not options of this version
+        return False
+    return replace(made, device=None) == replace(options, device=None)
 
 
 def _frames(video: Path, demo):

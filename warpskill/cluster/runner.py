@@ -29,17 +29,17 @@ import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator, Mapping, Union
+from typing import TYPE_CHECKING, Callable, Iterator, Mapping, Union
 
 from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.reconstruction import Reconstruction
+from warpskill.contract.results_folder import ResultsFolder
+
+if TYPE_CHECKING:  # the optimiser pulls in torch and Warp: imported in the tasks that use it
+    from warpskill.optimizer.options import OptimizeOptions
 
 INSTALL_HINT = 'pip install -e ".[cluster]"'
-RESULT = "reconstruction.npz"
-CHECKPOINT = "checkpoint.pt"
 PID = "worker.pid"  #: the pid of the worker process running the demonstration (removed when it ends)
-ATTEMPTS = "attempts.log"  #: one line per attempt of this run: "pid unix-time"
-ERROR = "error.txt"
 BATCHES = ".checkpoints"  #: OUT/.checkpoints/<group>.pt: the checkpoints of multi-demonstration (GPU) batches
 
 Source = Union[str, os.PathLike, Demonstration]
@@ -66,7 +66,7 @@ class Outcome:
 
     @property
     def reconstruction(self) -> Path:
-        return self.folder / RESULT
+        return ResultsFolder(self.folder).reconstruction
 
 
 @dataclass
@@ -151,23 +151,21 @@ def ray_session(workers: int | None = None, address: str | None = None, *, gpus:
 def optimize_folder(
     demos: Mapping[str, Source],
     out: str | os.PathLike,
+    options: OptimizeOptions | None = None,
     *,
     workers: int | None = None,
     address: str | None = None,
-    device: str | None = None,
-    iterations: int | None = None,
-    seed: int = 0,
     progress: bool = True,
-    config=None,
-    init_only: bool = False,
     batch: int | None = None,
     retries: int = 3,
     postprocess: Postprocess | None = None,
+    **fields,
 ) -> Summary:
     """Reconstruct many demonstrations over Ray: each into ``OUT/<name>/reconstruction.npz``.
 
     Each reconstruction is the one :func:`warpskill.optimize` gives for the same
-    demonstration, seed and settings (up to floating-point rounding).
+    demonstration and options (up to floating-point rounding): ``options`` reaches every
+    task as it is (pickled) and is saved in each reconstruction (docs/formats.md).
 
     Args:
         demos: name (the folder under ``out``) to a demonstration ``.npz`` path (read in its
@@ -178,7 +176,8 @@ def optimize_folder(
         address: a Ray cluster to join (default ``RAY_ADDRESS``; none: a local Ray of
             ``workers`` CPUs for the call). Its nodes need warpskill installed and ``out``
             shared.
-        device, iterations, seed, config, init_only: as :func:`warpskill.optimize`.
+        options, fields: as :func:`warpskill.optimize` (:class:`OptimizeOptions`; its device
+            decides CPU or GPU tasks).
         progress: one progress bar for the whole run (the tasks show none).
         batch: demonstrations per task (one ``optimize_many`` call); default 1 on the CPU,
             the demonstrations split evenly over the workers on GPUs.
@@ -193,8 +192,12 @@ def optimize_folder(
         ModuleNotFoundError: Ray is not installed.
         ValueError: a name is not a plain folder name.
     """
+    from warpskill.optimizer.options import OptimizeOptions  # deferred: the optimiser pulls in torch and Warp
+
     start = time.perf_counter()
     out = Path(out)
+    options = OptimizeOptions.build(options, **fields)
+    device = options.device
     if not (device is None or device == "cpu" or str(device).startswith("cuda")):
         raise ValueError(f"device {device!r}: warpskill runs on 'cpu' or 'cuda'")
     for name in demos:
@@ -204,7 +207,7 @@ def optimize_folder(
     pending: list[tuple[str, Source, Path]] = []
     for name, source in demos.items():
         folder = out / name
-        if _finished(folder):
+        if ResultsFolder(folder).finished_reconstruction() is not None:
             outcomes[name] = Outcome(name, "done before", folder)
         else:
             pending.append((name, source, folder))
@@ -212,8 +215,8 @@ def optimize_folder(
     if not pending:
         return Summary(outcomes, workers or 0, time.perf_counter() - start)
     for _, _, folder in pending:  # this run's attempts only
-        for stale in (PID, ATTEMPTS):
-            (folder / stale).unlink(missing_ok=True)
+        (folder / PID).unlink(missing_ok=True)
+        ResultsFolder(folder).clear_attempts()
     pending.sort(key=lambda item: -_size(item[1]))  # longest first: the last task to start is a short one
     import ray
 
@@ -226,14 +229,13 @@ def optimize_folder(
         size = batch or (math.ceil(len(pending) / slots) if gpu else 1)
         groups = [pending[i::math.ceil(len(pending) / size)] for i in range(math.ceil(len(pending) / size))]
         task = _remote().options(num_cpus=1, num_gpus=1 if gpu else 0, max_retries=retries)
-        options = dict(device=device, iterations=iterations, seed=seed, config=config, init_only=init_only,
-                       postprocess=postprocess)
-        outcomes.update(_run(ray, task, groups, options, out, slots, len(demos), len(outcomes), progress))
+        outcomes.update(_run(ray, task, groups, options, postprocess, out, slots, len(demos), len(outcomes), progress))
     ordered = {name: outcomes[name] for name in demos}
     return Summary(ordered, slots, time.perf_counter() - start, startup, joined)
 
 
-def _run(ray, task, groups, options, out: Path, slots: int, total: int, before: int, progress: bool) -> dict[str, Outcome]:
+def _run(ray, task, groups, options: OptimizeOptions, postprocess: Postprocess | None, out: Path, slots: int,
+         total: int, before: int, progress: bool) -> dict[str, Outcome]:
     """Submit the groups, ``slots`` at a time; collect their outcomes under one progress bar."""
     from tqdm.auto import tqdm
 
@@ -262,7 +264,7 @@ def _run(ray, task, groups, options, out: Path, slots: int, total: int, before: 
                 checkpoint = out / BATCHES / f"{_digest([name for name, _, _ in group])}.pt" if len(group) > 1 else None
                 items = [(name, source if isinstance(source, Demonstration) else str(source), str(folder))
                          for name, source, folder in group]
-                running[task.remote(items, dict(options, checkpoint=checkpoint))] = group
+                running[task.remote(items, options, checkpoint, postprocess)] = group
             ready, _ = ray.wait(list(running), num_returns=1, timeout=1.0)
             for ref in ready:
                 group = running.pop(ref)
@@ -290,11 +292,22 @@ def _run(ray, task, groups, options, out: Path, slots: int, total: int, before: 
 def _remote():
     import ray
 
-    return ray.remote(_optimize_group)
+    return ray.remote(_optimize_group_locked)
 
 
-def _optimize_group(items: list[tuple[str, object, str]], options: dict) -> list[dict]:
-    """The Ray task: optimise one group of demonstrations; one result dict per demonstration."""
+def _optimize_group_locked(items: list[tuple[str, object, str]], options: OptimizeOptions, checkpoint: Path | None,
+                           postprocess: Postprocess | None) -> list[dict]:
+    """The Ray task: :func:`_optimize_group` holding the lock of each demonstration's folder."""
+    with contextlib.ExitStack() as stack:
+        for folder in sorted({folder for _, _, folder in items}):
+            stack.enter_context(ResultsFolder(folder).locked())
+        return _optimize_group(items, options, checkpoint, postprocess)
+
+
+def _optimize_group(items: list[tuple[str, object, str]], options: OptimizeOptions, checkpoint: Path | None,
+                    postprocess: Postprocess | None) -> list[dict]:
+    """The Ray task: optimise one group of demonstrations with ``options`` (``checkpoint``: the
+    group's, for more than one); one result dict per demonstration."""
     start, cpu = time.perf_counter(), time.process_time()
     pid = os.getpid()
     states, demos, results = {}, {}, {}
@@ -302,11 +315,8 @@ def _optimize_group(items: list[tuple[str, object, str]], options: dict) -> list
         folder = Path(folder)
         folder.mkdir(parents=True, exist_ok=True)
         (folder / PID).write_text(f"{pid}\n")
-        with open(folder / ATTEMPTS, "a") as log:
-            log.write(f"{pid} {time.time():.3f}\n")
-        attempts = len((folder / ATTEMPTS).read_text().splitlines())
-        resumed = (folder / CHECKPOINT).exists() or (options["checkpoint"] is not None
-                                                      and Path(options["checkpoint"]).exists())
+        attempts = ResultsFolder(folder).log_attempt()
+        resumed = ResultsFolder(folder).checkpoint.exists() or (checkpoint is not None and checkpoint.exists())
         states[name] = dict(folder=folder, attempts=attempts, resumed=resumed)
         try:
             demos[name] = source if isinstance(source, Demonstration) else Demonstration.load(source)
@@ -315,13 +325,14 @@ def _optimize_group(items: list[tuple[str, object, str]], options: dict) -> list
     good = [name for name, _, _ in items if name in demos]
     if len(good) > 1:
         try:
-            results.update(_optimize(good, demos, states, options, options["checkpoint"]))
+            results.update(_optimize(good, demos, states, options, checkpoint, postprocess))
             good = []
         except Exception:  # one demonstration spoiled the batch: each alone below, so it fails alone
             pass
     for name in good:
         try:
-            results.update(_optimize([name], demos, states, options, states[name]["folder"] / CHECKPOINT))
+            results.update(_optimize([name], demos, states, options, ResultsFolder(states[name]["folder"]).checkpoint,
+                                     postprocess))
         except Exception as error:
             results[name] = _failure(states[name]["folder"], error)
     seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
@@ -331,40 +342,31 @@ def _optimize_group(items: list[tuple[str, object, str]], options: dict) -> list
                  **results[name]) for name, _, _ in items]
 
 
-def _optimize(names, demos, states, options, checkpoint) -> dict[str, dict]:
+def _optimize(names, demos, states, options: OptimizeOptions, checkpoint: Path | None,
+              postprocess: Postprocess | None) -> dict[str, dict]:
     from warpskill.optimizer.pipeline import optimize_many
 
     start = time.perf_counter()
-    reconstructions = optimize_many([demos[name] for name in names], device=options["device"],
-                                    iterations=options["iterations"], seed=options["seed"], progress=False,
-                                    config=options["config"], init_only=options["init_only"], checkpoint=checkpoint)
+    reconstructions = optimize_many([demos[name] for name in names], options, progress=False, checkpoint=checkpoint)
     seconds = time.perf_counter() - start
     results = {}
     for name, recon in zip(names, reconstructions):
         folder = states[name]["folder"]
-        recon.save(folder / RESULT)
-        (folder / ERROR).unlink(missing_ok=True)
+        keeper = ResultsFolder(folder)
+        keeper.save(recon, keeper.reconstruction)
+        keeper.clear_error()
         results[name] = dict(status="done", reason="", optimize_seconds=seconds)
-        if options["postprocess"] is not None:
+        if postprocess is not None:
             try:
-                options["postprocess"](recon, demos[name], folder)
+                postprocess(recon, demos[name], folder)
             except Exception as error:
                 results[name]["reason"] = f"after the reconstruction: {type(error).__name__}: {error}"
     return results
 
 
 def _failure(folder: Path, error: Exception) -> dict:
-    (folder / ERROR).write_text(traceback.format_exc())
+    ResultsFolder(folder).record_error(traceback.format_exc())
     return dict(status="failed", reason=f"{type(error).__name__}: {error}")
-
-
-def _finished(folder: Path) -> bool:
-    """Whether ``folder`` holds a readable reconstruction (a half-written one cannot be: writes are atomic)."""
-    try:
-        Reconstruction.load(folder / RESULT)
-    except Exception:
-        return False
-    return True
 
 
 def _size(source: Source) -> float:

@@ -1,8 +1,9 @@
-"""The data contract (``FORMATS.md``): the files warpskill reads and writes, in NumPy only.
+"""The data contract (``docs/formats.md``): the files warpskill reads and writes, in NumPy only.
 
 Owns the demonstration and reconstruction files (:class:`Demonstration`,
 :class:`Reconstruction`, their ``.npz`` I/O and checks), the action names, the camera
-intrinsics, the contact-signal filter and the paper's success criteria (:func:`evaluate`).
+intrinsics, the contact-signal filter, the paper's success criteria (:func:`evaluate`) and the
+skill record (:class:`Skill`, :func:`skill_from`, carried to a :class:`Layout`).
 May import NumPy and the standard library only: loading a file, judging a reconstruction
 or reading annotations never pulls in torch or Warp.
 """
@@ -13,6 +14,9 @@ from warpskill.contract.demonstration import Demonstration, DemonstrationError
 from warpskill.contract.evaluation import Evaluation, evaluate, success_table
 from warpskill.contract.reconstruction import Reconstruction, ReconstructionError
 from warpskill.contract.signals import majority_filter
+from warpskill.contract.replay import Replay
+from warpskill.contract.results_folder import ResultsFolder, ResultsFolderError
+from warpskill.contract.skill import Layout, LayoutError, Skill, SkillError, skill_from
 
 __all__ = [
     "ACTIONS",
@@ -20,12 +24,20 @@ __all__ = [
     "DemonstrationError",
     "Evaluation",
     "Intrinsics",
+    "Layout",
+    "LayoutError",
     "Reconstruction",
     "ReconstructionError",
+    "Replay",
+    "ResultsFolder",
+    "ResultsFolderError",
+    "Skill",
+    "SkillError",
     "check_action",
     "default_intrinsics",
     "evaluate",
     "has_static_object",
     "majority_filter",
+    "skill_from",
     "success_table",
 ]

@@ -1,4 +1,4 @@
-"""The nine action names of the data contract (``FORMATS.md``)."""
+"""The nine action names of the data contract (``docs/formats.md``)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The pinhole camera of the data contract (``FORMATS.md``): intrinsics, in NumPy.
+"""The pinhole camera of the data contract (``docs/formats.md``): intrinsics, in NumPy.
 
 Image coordinates are continuous, with the centre of pixel (row i, column j) at
 (j + 0.5, i + 0.5). The extrinsics (height, elevation) and the projection that the

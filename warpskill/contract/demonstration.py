@@ -1,4 +1,4 @@
-"""The demonstration file of the data contract (``FORMATS.md``): what warpskill reads.
+"""The demonstration file of the data contract (``docs/formats.md``): what warpskill reads.
 
 A demonstration is N frames of H x W binary masks (the hand, the manipulated object and
 K static objects), a per-frame hand-object contact signal, the frame rate and the camera
@@ -20,7 +20,7 @@ from warpskill.contract.reconstruction import ReconstructionError, check_fields
 
 TRUTH_PREFIX = "truth_"
 REQUIRED_KEYS = ("hand_mask", "object_mask", "contact", "fps")
-OPTIONAL_KEYS = ("static_mask", "camera_K", "action")
+OPTIONAL_KEYS = ("static_mask", "camera_K", "action", "object_noun")
 
 
 class DemonstrationError(ValueError):
@@ -45,6 +45,8 @@ class Demonstration:
         action: one of :data:`warpskill.contract.actions.ACTIONS`, or None if unknown.
         truth: ground truth (synthetic demonstrations): reconstruction key (without the
             ``truth_`` prefix) -> array; empty if none.
+        object_noun: what the manipulated object is, as annotated (e.g. ``"coffee mug"``;
+            :func:`warpskill.contract.nouns.typical_size` gives its typical size), or None.
 
     Raises:
         DemonstrationError: naming the key and the problem, for any input that breaks
@@ -60,6 +62,7 @@ class Demonstration:
     intrinsics: Intrinsics
     action: str | None = None
     truth: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    object_noun: str | None = None
 
     def __post_init__(self) -> None:
         self.hand_mask = _binary("hand_mask", self.hand_mask, ndim=3)
@@ -82,6 +85,8 @@ class Demonstration:
                 check_action(self.action)
             except ValueError as exc:
                 raise DemonstrationError(f"action: {exc}") from None
+        if self.object_noun is not None and not isinstance(self.object_noun, str):
+            raise DemonstrationError(f"object_noun: expected a string, got {type(self.object_noun).__name__}")
         try:
             self.truth = check_fields(self.truth, dims={"N": n, "K": self.num_static}, key_prefix=TRUTH_PREFIX)
         except ReconstructionError as exc:
@@ -99,6 +104,7 @@ class Demonstration:
         camera_K: np.ndarray | None = None,
         action: str | None = None,
         truth: dict[str, np.ndarray] | None = None,
+        object_noun: str | None = None,
     ) -> "Demonstration":
         """Build a demonstration from the arrays of a demonstration file.
 
@@ -111,6 +117,7 @@ class Demonstration:
             camera_K: (3, 3) intrinsics [px]; None for the paper's default.
             action: action name, or None if unknown.
             truth: ground-truth reconstruction fields, keyed without the ``truth_`` prefix.
+            object_noun: the manipulated object's noun, or None if unknown.
 
         Raises:
             DemonstrationError: naming the key and the problem.
@@ -125,7 +132,7 @@ class Demonstration:
             intrinsics = Intrinsics.default(h, w)
         else:
             intrinsics = Intrinsics(_finite_floats("camera_K", camera_K), (h, w))
-        return cls(hand_mask, object_mask, static_mask, contact, fps, intrinsics, action, dict(truth or {}))
+        return cls(hand_mask, object_mask, static_mask, contact, fps, intrinsics, action, dict(truth or {}), object_noun)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Demonstration":
@@ -157,6 +164,7 @@ class Demonstration:
                 camera_K=arrays.get("camera_K"),
                 action=_optional_string("action", arrays.get("action")),
                 truth=truth,
+                object_noun=_optional_string("object_noun", arrays.get("object_noun")),
             )
         except DemonstrationError as exc:
             raise DemonstrationError(f"{path}: {exc}") from None
@@ -165,7 +173,8 @@ class Demonstration:
         """Write the demonstration ``.npz`` to ``path`` atomically.
 
         Masks and contact are written as uint8 0/1, ``static_mask`` as (K, N, H, W) and
-        only when K > 0, ``camera_K`` always, ``action`` when known, truth as ``truth_*``.
+        only when K > 0, ``camera_K`` always, ``action`` and ``object_noun`` when known,
+        truth as ``truth_*``.
         """
         arrays = {
             "hand_mask": self.hand_mask.astype(np.uint8),
@@ -178,6 +187,8 @@ class Demonstration:
             arrays["static_mask"] = self.static_mask.astype(np.uint8)
         if self.action is not None:
             arrays["action"] = np.array(self.action)
+        if self.object_noun is not None:
+            arrays["object_noun"] = np.array(self.object_noun)
         arrays.update({TRUTH_PREFIX + name: value for name, value in self.truth.items()})
         save_npz_atomic(path, arrays)
 

@@ -7,7 +7,7 @@ import os
 import secrets
 import zipfile
 import zlib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import BinaryIO
 
@@ -57,17 +57,22 @@ def read_npz(path: str | os.PathLike | BinaryIO, error: type[Exception]) -> dict
 
 
 def save_npz_atomic(path: str | os.PathLike, arrays: Mapping[str, np.ndarray]) -> None:
-    """Write ``arrays`` with ``numpy.savez_compressed`` to exactly ``path``, atomically.
+    """Write ``arrays`` with ``numpy.savez_compressed`` to exactly ``path``, atomically (:func:`write_atomic`)."""
+    write_atomic(path, lambda file: np.savez_compressed(file, **arrays))
 
-    The archive is written to a new file in the same folder and renamed over ``path``
-    only once complete, so an existing file is never left half-written. The temporary
-    file is removed if writing fails.
+
+def write_atomic(path: str | os.PathLike, write: Callable[[BinaryIO], object]) -> None:
+    """Write a file with ``write(file)`` to exactly ``path``, atomically.
+
+    The content is written to a new file in the same folder, flushed to the disk and
+    renamed over ``path`` only once complete, so an existing file is never left
+    half-written. The temporary file is removed if writing fails.
     """
     path = Path(path)
     temporary = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
     try:
         with open(temporary, "xb") as file:
-            np.savez_compressed(file, **arrays)
+            write(file)
             file.flush()
             os.fsync(file.fileno())
         os.replace(temporary, path)

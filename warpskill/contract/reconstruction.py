@@ -1,4 +1,4 @@
-"""The reconstruction file of the data contract (``FORMATS.md``): what warpskill outputs.
+"""The reconstruction file of the data contract (``docs/formats.md``): what warpskill outputs.
 
 A reconstruction holds, per frame k of N, the hand tip pose and grasp signal, the
 manipulated cuboid's pose, and the K static cuboids and camera found for the whole video.
@@ -138,7 +138,7 @@ def _check_shape(
 class Reconstruction:
     """Hand, object, static objects and camera found for one demonstration.
 
-    Fields are exactly the reconstruction keys of ``FORMATS.md``; shapes in
+    Fields are exactly the reconstruction keys of ``docs/formats.md``; shapes in
     :data:`FIELD_SHAPES`. Construction validates and converts every field (see
     :func:`check_fields`); ``action`` may be given as ``None`` or ``""`` when unknown.
     """

@@ -1,6 +1,6 @@
 """The replay file: a robot plan's simulated scene in the reconstruction keys, and its verdict.
 
-``replay.npz`` holds the keys of a reconstruction (``FORMATS.md``), so that every tool that
+``replay.npz`` holds the keys of a reconstruction (``docs/formats.md``), so that every tool that
 judges reconstructions can judge a replay: ``hand_*`` is the gripper's TCP, ``object_*`` the
 simulated object, the sizes those simulated. Extra keys: ``success``, ``engine``,
 ``replay_time`` [s] and ``joints`` (F, 7) [rad].
@@ -17,6 +17,7 @@ from warpskill.contract.evaluation import Evaluation, evaluate
 from warpskill.contract.npz import read_npz, save_npz_atomic
 from warpskill.contract.reconstruction import (
     FIELD_SHAPES,
+    OPTIONAL_FIELDS,
     Reconstruction,
     ReconstructionError,
 )
@@ -48,7 +49,7 @@ class Replay:
         return self.evaluation.success
 
     def save(self, path: str | os.PathLike) -> None:
-        """Write ``replay.npz`` atomically: the reconstruction keys of ``FORMATS.md`` (the
+        """Write ``replay.npz`` atomically: the reconstruction keys of ``docs/formats.md`` (the
         simulated scene) plus ``success``, ``engine``, ``replay_time`` and ``joints``."""
         arrays = {name: getattr(self.reconstruction, name) for name in FIELD_SHAPES}
         arrays.update(
@@ -73,7 +74,7 @@ class Replay:
         missing = sorted({"engine", "joints"} - set(arrays))
         if missing:
             raise ReconstructionError(f"{path}: not a replay file, missing key(s) {', '.join(missing)}")
-        missing = [name for name in (*FIELD_SHAPES, "replay_time") if name not in arrays and name != "action"]
+        missing = [name for name in (*FIELD_SHAPES, "replay_time") if name not in arrays and name not in OPTIONAL_FIELDS]
         if missing:
             raise ReconstructionError(f"{path}: missing key(s) {', '.join(missing)}")
         joints, engine, replay_time = arrays["joints"], arrays["engine"], arrays["replay_time"]
@@ -85,7 +86,7 @@ class Replay:
             raise ReconstructionError(f"{path}: engine: expected a string, got {engine.dtype} of shape {engine.shape}")
         if replay_time.dtype.kind not in "iuf" or replay_time.ndim != 0 or not np.isfinite(replay_time) or replay_time < 0:
             raise ReconstructionError(f"{path}: replay_time: expected a finite scalar >= 0 [s], got {replay_time!r}")
-        fields = {name: arrays.get(name) for name in FIELD_SHAPES}  # a missing action: unknown
+        fields = {name: arrays.get(name, OPTIONAL_FIELDS.get(name)) for name in FIELD_SHAPES}
         try:
             recon = Reconstruction(**fields)
             evaluation = evaluate(recon, str(recon.action) or None)

@@ -1,4 +1,4 @@
-"""Scene primitives as convex n-prisms (``FORMATS.md``, "Scene primitives").
+"""Scene primitives as convex n-prisms (``docs/formats.md``, "Scene primitives").
 
 A prism with n sides has 2n vertices: the bottom ring (counter-clockwise about the local
 +z axis), then the top ring in the same order, so vertex k and vertex n + k share their

@@ -1,4 +1,4 @@
-"""The camera's extrinsics and projection, differentiable in Torch (``FORMATS.md``, "Camera").
+"""The camera's extrinsics and projection, differentiable in Torch (``docs/formats.md``, "Camera").
 
 World frame: z up, ground at z = 0, x to the image's right, y away from the camera.
 The optical centre sits at ``(0, 0, height)``; the camera looks along +y, pitched down by

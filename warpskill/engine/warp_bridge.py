@@ -11,6 +11,10 @@ from collections.abc import Iterator
 import torch
 import warp as wp
 
+from warpskill.warp_log import configure_warp_log
+
+configure_warp_log()  # quiet unless asked for (warpskill --verbose), before any kernel loads
+
 
 def as_warp(tensor: torch.Tensor, dtype=None, requires_grad: bool = False) -> wp.array:
     """Zero-copy Warp view of ``tensor`` (detached), with a Warp-owned gradient buffer if

@@ -1,0 +1,248 @@
+"""The results folder ``OUT/<name>/``: its file names, what "finished" means, its writes and its lock.
+
+Every command, benchmark and cluster task that writes a results folder goes through
+:class:`ResultsFolder`, so the folder's layout (``docs/formats.md``, "Results folder") is
+stated once:
+
+- A result is *finished* when its file loads and validates, not when it exists: a file
+  that does not load is reported once (``OUT/x/reconstruction.npz is corrupt (...):
+  redoing it``) and the step is redone.
+- Writes are atomic (a temporary file in the same folder, flushed to the disk, renamed over
+  the result); a full disk leaves the previous file intact and says so in one line
+  (:class:`ResultsFolderError`).
+- One process at a time writes a folder: :meth:`ResultsFolder.locked` holds an exclusive
+  ``flock`` on ``OUT/<name>/.lock``; a second command *waits* for the first to finish,
+  after a line saying for which pid (it then finds the first one's results finished and
+  skips them). The lock is released when its holder exits, however it exits; the lock file is removed
+  when the holder finishes normally.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import fcntl
+import os
+import time
+from pathlib import Path
+from typing import Callable, Iterator, TypeVar
+
+from warpskill.contract.demonstration import Demonstration
+from warpskill.contract.npz import write_atomic
+from warpskill.contract.reconstruction import Reconstruction
+from warpskill.contract.replay import Replay
+
+__all__ = ["ResultsFolder", "ResultsFolderError"]
+
+Loaded = TypeVar("Loaded")
+
+# The lock files this process holds, each with its open handle and how many blocks hold it:
+# flock excludes a second open of the same file even within one process, so nested blocks share one.
+_HELD: dict[Path, list] = {}
+
+
+class ResultsFolderError(OSError):
+    """A result could not be written (the disk is full); the message says what was kept."""
+
+
+class ResultsFolder:
+    """The results folder of one demonstration, ``OUT/<name>/``.
+
+    Args:
+        path: the folder; created by the first write or lock.
+    """
+
+    RECONSTRUCTION = "reconstruction.npz"  #: the reconstruction (``warpskill optimize``)
+    INITIALISATION = "initialisation.npz"  #: the physics-free initialisation alone (``warpskill bench synthetic``)
+    DEMONSTRATION = "demonstration.npz"  #: the demonstration it was made from (``warpskill demo`` / ``run``)
+    PLAN = "plan.npz"  #: the robot plan (``warpskill retarget``), with ``plan.csv`` beside it
+    REPLAY = "replay.npz"  #: the simulated plan (``warpskill replay``)
+    CHECKPOINT = "checkpoint.pt"  #: the optimiser's checkpoint while it runs
+    ERROR = "error.txt"  #: why the last attempt failed (its traceback)
+    ATTEMPTS = "attempts.log"  #: one line per attempt of a cluster run: "pid unix-time"
+    LOCK = ".lock"  #: the lock file; holds the pid of the process writing the folder
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+
+    def __repr__(self) -> str:
+        return f"ResultsFolder({str(self.path)!r})"
+
+    @property
+    def reconstruction(self) -> Path:
+        return self.path / self.RECONSTRUCTION
+
+    @property
+    def initialisation(self) -> Path:
+        return self.path / self.INITIALISATION
+
+    @property
+    def demonstration(self) -> Path:
+        return self.path / self.DEMONSTRATION
+
+    @property
+    def plan(self) -> Path:
+        return self.path / self.PLAN
+
+    @property
+    def plan_csv(self) -> Path:
+        return self.plan.with_suffix(".csv")
+
+    @property
+    def replay(self) -> Path:
+        return self.path / self.REPLAY
+
+    def engine_replay(self, engine: str) -> Path:
+        """The replay in one engine, ``replay_<engine>.npz``, when several engines replay one plan."""
+        return self.path / f"replay_{engine}.npz"
+
+    @property
+    def checkpoint(self) -> Path:
+        return self.path / self.CHECKPOINT
+
+    @property
+    def error(self) -> Path:
+        return self.path / self.ERROR
+
+    @property
+    def attempts(self) -> Path:
+        return self.path / self.ATTEMPTS
+
+    def load_finished(self, path: Path, load: Callable[[Path], Loaded]) -> Loaded | None:
+        """``load(path)`` when the file loads; None when it is missing or corrupt (then it is redone).
+
+        A corrupt file (``load`` raises ``ValueError`` or ``OSError``) is reported in one line.
+        """
+        if not path.is_file():
+            return None
+        try:
+            return load(path)
+        except (ValueError, OSError) as error:
+            reason = str(error).removeprefix(f"{path}: ")
+            print(f"{path} is corrupt ({reason}): redoing it", flush=True)
+            return None
+
+    def finished_reconstruction(self) -> Reconstruction | None:
+        """The reconstruction, if finished (:meth:`load_finished`)."""
+        return self.load_finished(self.reconstruction, Reconstruction.load)
+
+    def finished_demonstration(self) -> Demonstration | None:
+        """The demonstration, if finished (:meth:`load_finished`)."""
+        return self.load_finished(self.demonstration, Demonstration.load)
+
+    def finished_replay(self) -> Replay | None:
+        """The replay, if finished (:meth:`load_finished`)."""
+        return self.load_finished(self.replay, Replay.load)
+
+    def save(self, record, path: Path) -> Path:
+        """``record.save(path)`` (an atomic write), creating the folder; returns ``path``.
+
+        Raises:
+            ResultsFolderError: the disk is full; the previous file at ``path`` is intact.
+        """
+        self.path.mkdir(parents=True, exist_ok=True)
+        with _disk_full_said(path):
+            record.save(path)
+        return path
+
+    def write_text(self, path: Path, text: str) -> Path:
+        """Write ``text`` to ``path`` atomically, creating the folder; returns ``path``.
+
+        Raises:
+            ResultsFolderError: the disk is full; the previous file at ``path`` is intact.
+        """
+        self.path.mkdir(parents=True, exist_ok=True)
+        with _disk_full_said(path):
+            write_atomic(path, lambda file: file.write(text.encode()))
+        return path
+
+    def record_error(self, text: str) -> Path:
+        """Write why the attempt failed (``text``, its traceback) to the error file; returns its path."""
+        return self.write_text(self.error, text)
+
+    def clear_error(self) -> None:
+        """Remove the error file of an earlier attempt (this one succeeded)."""
+        self.error.unlink(missing_ok=True)
+
+    def log_attempt(self) -> int:
+        """Append this attempt (``"pid unix-time"``) to the attempts log; returns the attempts logged."""
+        self.path.mkdir(parents=True, exist_ok=True)
+        with open(self.attempts, "a") as log:
+            log.write(f"{os.getpid()} {time.time():.3f}\n")
+        return len(self.attempts.read_text().splitlines())
+
+    def clear_attempts(self) -> None:
+        """Forget the attempts logged (a new run counts its own)."""
+        self.attempts.unlink(missing_ok=True)
+
+    @contextlib.contextmanager
+    def locked(self) -> Iterator[ResultsFolder]:
+        """Hold the folder's lock for the block; wait, after saying so, while another process holds it.
+
+        Reentrant within a process: a nested block on the same folder shares the lock.
+        """
+        self.path.mkdir(parents=True, exist_ok=True)
+        lock = (self.path / self.LOCK).resolve()
+        if lock in _HELD:
+            _HELD[lock][1] += 1
+            try:
+                yield self
+            finally:
+                _HELD[lock][1] -= 1
+            return
+        handle = _open_locked(lock, self.path)
+        with handle:
+            handle.seek(0)
+            handle.truncate()
+            handle.write(f"{os.getpid()}\n")
+            handle.flush()
+            _HELD[lock] = [handle, 1]
+            try:
+                yield self
+            finally:
+                del _HELD[lock]
+                lock.unlink(missing_ok=True)  # while still held: a waiter then finds its file gone and retries
+
+
+def _open_locked(lock: Path, folder: Path):
+    """The lock file ``lock``, open and exclusively locked by this process.
+
+    A holder removes the file as it finishes, so a process that waited on the old file
+    retries on a new one until the file it locked is the one at ``lock``.
+    """
+    while True:
+        handle = open(lock, "a+")
+        _acquire(handle, folder)
+        try:
+            if os.stat(lock).st_ino == os.fstat(handle.fileno()).st_ino:
+                return handle
+        except FileNotFoundError:
+            pass
+        handle.close()
+
+
+def _acquire(handle, folder: Path) -> None:
+    """Take the exclusive lock on ``handle``; if another process has it, say which and wait."""
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        return
+    except BlockingIOError:
+        pass
+    handle.seek(0)
+    pid = handle.read().strip()
+    holder = f"pid {pid}" if pid.isdigit() else "another process"
+    print(f"{folder}: being written by {holder}; waiting for it to finish", flush=True)
+    fcntl.flock(handle, fcntl.LOCK_EX)
+
+
+@contextlib.contextmanager
+def _disk_full_said(path: Path) -> Iterator[None]:
+    """Turn a full disk during the write of ``path`` into one line saying what was kept."""
+    existed = path.exists()
+    try:
+        yield
+    except OSError as error:
+        if error.errno != errno.ENOSPC:
+            raise
+        kept = "the previous file is intact" if existed else "nothing was written"
+        raise ResultsFolderError(f"no space left on device writing {path}; {kept}") from None
