@@ -14,6 +14,7 @@ from test_something_else import _messy, _write
 from warpskill.cli import main
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder, ResultsFolderError
+from warpskill.optimizer.options import OptimizeOptions
 from warpskill.synthetic import make_demonstration
 
 # Holds the folder's lock, says so, then writes the reconstruction read from argv[2] into it.
@@ -55,6 +56,23 @@ def test_a_corrupt_result_is_reported_in_one_line_and_not_finished(tmp_path, cap
     [line] = capsys.readouterr().out.splitlines()
     assert line.startswith(f"{keeper.reconstruction} is corrupt (not a readable .npz archive (BadZipFile")
     assert line.endswith("): redoing it")
+
+
+def test_a_reconstruction_made_with_other_options_is_not_finished(truth, tmp_path, capsys):
+    asked = OptimizeOptions(device="cpu", seed=1)
+    keeper = ResultsFolder(tmp_path)
+    keeper.save(dataclasses.replace(truth, options=np.array(asked.to_json())), keeper.reconstruction)
+    assert keeper.finished_reconstruction(asked.to_json()) is not None
+    assert keeper.finished_reconstruction(dataclasses.replace(asked, device="cuda").to_json()) is not None
+    assert keeper.finished_reconstruction() is not None  # no options asked: any will do
+    assert capsys.readouterr().out == ""
+    other = asked.with_settings(["config.init_iterations=4"])
+    assert keeper.finished_reconstruction(other.to_json()) is None
+    assert keeper.finished_reconstruction(dataclasses.replace(asked, seed=2).to_json()) is None
+    keeper.save(truth, keeper.reconstruction)  # records no options
+    assert keeper.finished_reconstruction(asked.to_json()) is None
+    lines = capsys.readouterr().out.splitlines()
+    assert lines == [f"{keeper.reconstruction}: made with other options; redoing the step"] * 3
 
 
 def test_a_full_disk_keeps_the_previous_result_and_says_so(truth, tmp_path, monkeypatch):

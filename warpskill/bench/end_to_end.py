@@ -21,6 +21,7 @@ from typing import Sequence
 import numpy as np
 
 from warpskill.contract.results_folder import ResultsFolder
+from warpskill.robot import PlanError, prefer_headless_gl, record, replay, retarget
 
 ENGINES: tuple[str, ...] = ("mujoco", "newton")
 
@@ -106,7 +107,6 @@ def robot_step(recon, folder: Path | None = None, *, engines: Sequence[str] = EN
         The :class:`RobotOutcome`; a plan that cannot be made is an outcome with its reason
         (:class:`~warpskill.robot.PlanError`), not an exception.
     """
-    from warpskill.robot import PlanError, prefer_headless_gl, record, replay, retarget
 
     prefer_headless_gl()  # before MuJoCo is first imported (a no-op afterwards)
     try:

@@ -23,20 +23,19 @@ from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.skill import LayoutError, skill_from
 from warpskill.export.layouts import layouts as random_layouts
 from warpskill.export.perturbation import PERTURBATIONS
+from warpskill.robot import PlanError, prefer_headless_gl, replay, retarget
 
 __all__ = ["bench_generalize", "robust_misses"]
 
 
 def robust_misses(plan, recon) -> list[str]:
     """Names of the perturbations under which the MuJoCo replay of ``plan`` fails (empty: robust)."""
-    from warpskill.robot import replay  # deferred: MuJoCo
 
     return [p.name for p in PERTURBATIONS if not replay(plan, recon, edit_model=p).success]
 
 
 def _case(skill, layout, engines: Sequence[str], device: str, robust: bool) -> tuple[dict[str, bool], list[str]]:
     """One layout: ``{"planned", "replay <engine>"..., "robust"}`` verdicts and the reasons of its misses."""
-    from warpskill.robot import PlanError, replay, retarget  # deferred: placo, MuJoCo, Newton
 
     verdicts = {"planned": False, **{f"replay {engine}": False for engine in engines}, "robust": False}
     recon = skill.apply(layout)
@@ -75,7 +74,6 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
         ``{"rows": {row: [(action, ok)]}, "misses": [str]}``, rows ``planned``,
         ``replay <engine>``, and ``robust`` when computed.
     """
-    from warpskill.robot import prefer_headless_gl
 
     prefer_headless_gl()
     robust = robust and "mujoco" in engines

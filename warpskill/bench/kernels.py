@@ -7,6 +7,9 @@ import torch
 
 from warpskill.bench.timing import timed
 from warpskill.contract.camera import Intrinsics
+from warpskill.engine.simulation import simulate
+from warpskill.optimizer.scene import SceneTrajectories, render_scene
+from warpskill.synthetic import make_demonstration, scripted_inputs, scripted_scene
 
 
 def bench_kernels(device: str = "cpu", repeats: int = 5) -> list[dict]:
@@ -16,9 +19,6 @@ def bench_kernels(device: str = "cpu", repeats: int = 5) -> list[dict]:
     B = 1 and B = 64 scenes. Raster: 50 frames of hand + object + static at 240 x 427,
     and at half and quarter resolution. Prints a table and returns its rows.
     """
-    from warpskill.engine.simulation import simulate
-    from warpskill.optimizer.scene import SceneTrajectories, render_scene
-    from warpskill.synthetic import make_demonstration, scripted_inputs, scripted_scene
 
     device = torch.device(device)
     rows = []

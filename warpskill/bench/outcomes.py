@@ -18,16 +18,18 @@ import os
 from pathlib import Path
 
 import numpy as np
+import torch
 
 from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.evaluation import Evaluation, evaluate
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
+from warpskill.engine.projection import world_to_camera
 
 OUTCOMES_JSON = "outcomes.json"
 OUTCOMES_CSV = "outcomes.csv"
 ERROR_KEYS = ("centre", "hand", "size", "camera_height", "elevation", "scale")
-"""Key errors kept per case (see :func:`warpskill.bench.synthetic.camera_frame_errors`)."""
+"""Key errors kept per case (see :func:`camera_frame_errors`)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -140,9 +142,6 @@ def evaluate_case(folder: Path, action: str | None = None) -> CaseOutcome:
     """The outcome of ``folder/reconstruction.npz`` for ``action`` (default: the one stored in it,
     else the ``<action>_<seed>`` folder name's); a ``demonstration.npz`` with ground truth
     beside it adds the errors."""
-    # Deferred: bench.synthetic imports this module (and brings torch).
-    from warpskill.bench.synthetic import camera_frame_errors
-
     recon = Reconstruction.load(folder / ResultsFolder.RECONSTRUCTION)
     evaluation = evaluate(recon, action or str(recon.action) or folder.name.rsplit("_", 1)[0])
     errors = None
@@ -151,6 +150,38 @@ def evaluate_case(folder: Path, action: str | None = None) -> CaseOutcome:
         truth = Demonstration.load(demo_path).truth
         errors = camera_frame_errors(recon, truth) if truth else None
     return judged(folder.name, evaluation, errors)
+
+
+def camera_frame_errors(recon, truth: dict[str, np.ndarray]) -> dict[str, float]:
+    """Errors of a reconstruction against the ground truth.
+
+    Keys: ``centre`` and ``hand`` (median over frames of the object-centre and hand-tip
+    error [m], in each scene's own camera frame, where the world's ambiguity (camera height
+    and elevation) cancels); ``size`` (sorted edge lengths, mean absolute error [m]: a
+    cuboid's axes may be permuted); ``camera_height`` [m] and ``elevation`` [rad] (absolute
+    errors); ``scale``: the scene's size relative to the truth, the median over frames of
+    the object centre's distance from the camera, reconstructed over true (scaling the
+    scene about the camera multiplies exactly this distance).
+    """
+
+    def in_camera(pos, height, elevation):
+        p = torch.as_tensor(np.asarray(pos, dtype=np.float64))
+        return world_to_camera(p, torch.tensor(float(height), dtype=torch.float64),
+                               torch.tensor(float(elevation), dtype=torch.float64)).numpy()
+
+    est = in_camera(recon.object_pos, recon.camera_height, recon.camera_elevation)
+    ref = in_camera(truth["object_pos"], truth["camera_height"], truth["camera_elevation"])
+    hand_est = in_camera(recon.hand_pos, recon.camera_height, recon.camera_elevation)
+    hand_ref = in_camera(truth["hand_pos"], truth["camera_height"], truth["camera_elevation"])
+    size_error = np.abs(np.sort(recon.object_size) - np.sort(truth["object_size"])).mean()
+    return {
+        "centre": float(np.median(np.linalg.norm(est - ref, axis=1))),
+        "hand": float(np.median(np.linalg.norm(hand_est - hand_ref, axis=1))),
+        "size": float(size_error),
+        "camera_height": float(abs(float(recon.camera_height) - float(truth["camera_height"]))),
+        "elevation": float(abs(float(recon.camera_elevation) - float(truth["camera_elevation"]))),
+        "scale": float(np.median(np.linalg.norm(est, axis=1) / np.linalg.norm(ref, axis=1))),
+    }
 
 
 def flips(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome]) -> tuple[list, list]:

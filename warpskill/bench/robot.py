@@ -15,8 +15,15 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
+from warpskill.bench.end_to_end import agreement, agreement_line, robot_rows, robot_step, timing_lines
 from warpskill.contract.actions import ACTIONS
+from warpskill.contract.evaluation import evaluate, success_table
+from warpskill.contract.reconstruction import Reconstruction
+from warpskill.contract.results_folder import ResultsFolder
 from warpskill.optimizer.options import OptimizeOptions
+from warpskill.optimizer.pipeline import optimize
+from warpskill.robot import prefer_headless_gl
+from warpskill.synthetic import make_demonstration
 
 SOURCES: tuple[str, ...] = ("truth", "optimised")
 
@@ -30,10 +37,6 @@ def synthetic_reconstruction(action: str, seed: int, source: str, options: Optim
     as ``folder/reconstruction.npz`` when ``folder`` is given (a rerun loads it; a corrupt
     one is redone).
     """
-    from warpskill.contract.reconstruction import Reconstruction
-    from warpskill.contract.results_folder import ResultsFolder
-    from warpskill.optimizer.pipeline import optimize
-    from warpskill.synthetic import make_demonstration
 
     if source not in SOURCES:
         raise ValueError(f"unknown source {source!r}; valid sources: {', '.join(SOURCES)}")
@@ -75,9 +78,6 @@ def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, sourc
         "outcomes": [(action, seed, RobotOutcome)], "agreement": dict}`` (rows: ``reconstruction``,
         ``planned``, ``replay <engine>``, ``end to end``; agreement: :func:`~warpskill.bench.end_to_end.agreement`).
     """
-    from warpskill.bench.end_to_end import agreement, agreement_line, robot_rows, robot_step, timing_lines
-    from warpskill.contract.evaluation import evaluate, success_table
-    from warpskill.robot import prefer_headless_gl
 
     prefer_headless_gl()
     options = options or OptimizeOptions()

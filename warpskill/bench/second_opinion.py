@@ -24,14 +24,21 @@ from typing import Sequence
 
 import numpy as np
 
-from warpskill.bench.outcomes import CaseOutcome, failed_case, judged, median_errors, record_outcomes
-from warpskill.bench.synthetic import camera_frame_errors
+from warpskill.bench.outcomes import (
+    CaseOutcome,
+    camera_frame_errors,
+    failed_case,
+    judged,
+    median_errors,
+    record_outcomes,
+)
 from warpskill.contract.actions import ACTIONS
 from warpskill.contract.demonstration import TRUTH_PREFIX
 from warpskill.contract.evaluation import evaluate, success_table
 from warpskill.contract.results_folder import ResultsFolder
 from warpskill.data.box_annotations import read_something_else, something_else_demonstration
 from warpskill.optimizer.options import OptimizeOptions
+from warpskill.optimizer.pipeline import optimize
 
 GENERATOR = "synthdemo.py"
 ANNOTATOR = "synth_sthelse.py"
@@ -95,7 +102,6 @@ def bench_second_opinion(
         ``{"rows": {row: [(action, success)]}, "outcomes": [CaseOutcome]}``, or None when
         the tools are absent.
     """
-    from warpskill.optimizer.pipeline import optimize  # torch and Warp: only for a run
 
     folder = find_tools(tools)
     if folder is None:

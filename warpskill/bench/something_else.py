@@ -37,6 +37,7 @@ from warpskill.bench.end_to_end import (
     timing_lines,
 )
 from warpskill.bench.outcomes import folder_outcomes, record_outcomes
+from warpskill.cluster import INSTALL_HINT, optimize_folder, ray_available
 from warpskill.contract.evaluation import evaluate, success_table
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
@@ -45,6 +46,9 @@ from warpskill.data.box_annotations import (
     something_else_demonstration,
 )
 from warpskill.optimizer.options import OptimizeOptions
+from warpskill.optimizer.pipeline import optimize
+from warpskill.robot import prefer_headless_gl
+from warpskill.visual.pictures import save_pictures
 
 ROW = "full method (box masks)"
 
@@ -93,9 +97,6 @@ def bench_something_else(
         (:func:`~warpskill.bench.end_to_end.agreement`); and ``"outcomes"`` (the
         :class:`~warpskill.bench.outcomes.CaseOutcome` of each video).
     """
-    from warpskill.optimizer.pipeline import optimize
-    from warpskill.visual.pictures import save_pictures
-
     table = read_something_else(annotations, phases, actions)
     unknown = sorted(set(videos or ()) - set(table))
     if unknown:
@@ -105,9 +106,6 @@ def bench_something_else(
     options = options or OptimizeOptions()
     step = _RobotStep(engines, options.device or "cpu", video) if robot else None
     if workers is not None or address:
-        from warpskill.cluster import INSTALL_HINT
-        from warpskill.cluster.runner import ray_available
-
         if ray_available():
             result = _bench_on_ray(table, videos or list(table), out, options, pictures, workers, address, step)
             return _with_outcomes(result, out, table, videos or list(table), baseline, save_baseline)
@@ -125,7 +123,7 @@ def bench_something_else(
             (folder / "notes.txt").write_text("".join(note + "\n" for note in notes))
             keeper = ResultsFolder(folder)
             with keeper.locked():
-                recon, status = keeper.finished_reconstruction(), "done before"
+                recon, status = keeper.finished_reconstruction(options.to_json()), "done before"
                 if recon is None:
                     optimizing = time.perf_counter()
                     recon = optimize(demo, options, progress=False, checkpoint=keeper.checkpoint)
@@ -166,9 +164,6 @@ def _with_outcomes(result: dict, out: Path, table, vids, baseline, save_baseline
 
 def _bench_on_ray(table, vids, out: Path, options, pictures, workers, address, step) -> dict:
     """The videos' demonstrations built here, reconstructed over Ray, then evaluated here."""
-    from warpskill.cluster.runner import optimize_folder
-    from warpskill.visual.pictures import save_pictures
-
     wall = time.perf_counter()
     results, failures, seconds, demos, notes = [], {}, {}, {}, {}
     for vid in vids:
@@ -225,8 +220,6 @@ class _RobotStep:
     """The robot step per video (:func:`robot_step`), its printed line and the outcomes so far."""
 
     def __init__(self, engines: Sequence[str], device: str, video: bool):
-        from warpskill.robot import prefer_headless_gl
-
         prefer_headless_gl()
         self.engines, self.device, self.video = tuple(engines), device, video
         self.cases: list = []  # (video_id, action, reconstruction ok, outcome or None)

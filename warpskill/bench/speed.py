@@ -28,7 +28,9 @@ from typing import Callable, Sequence
 import torch
 
 from warpskill.bench.timing import timed
+from warpskill.contract.actions import ACTIONS
 from warpskill.contract.demonstration import Demonstration
+from warpskill.contract.evaluation import evaluate
 from warpskill.engine.device import resolve_device
 from warpskill.engine.reference.dopri5 import simulate_dopri5
 from warpskill.engine.reference.physics import simulate_reference
@@ -36,7 +38,7 @@ from warpskill.engine.reference.raster import render_reference
 from warpskill.optimizer.batching import Backend, render_many, simulate_many
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.inputs import WorkingInputs, working_inputs
-from warpskill.optimizer.pipeline import optimize
+from warpskill.optimizer.pipeline import optimize, optimize_many
 from warpskill.optimizer.scene import SceneTrajectories
 from warpskill.optimizer.guess import OBJECT_DEPTH_HYPOTHESES, initial_guess
 from warpskill.optimizer.stage_a import InitialParameters, initial_objective
@@ -293,9 +295,6 @@ def bench_many(*, batches: Sequence[int] = (1, 8), devices: Sequence[str] = ("cp
     A batch of B is B synthetic demonstrations (the 9 actions in turn, 50 frames of 240 x
     427, moderate noise), both stages, optimised together. Prints a table and returns its rows.
     """
-    from warpskill.contract.actions import ACTIONS
-    from warpskill.contract.evaluation import evaluate
-    from warpskill.optimizer.pipeline import optimize_many
 
     rows = []
     for device in map(resolve_device, devices):

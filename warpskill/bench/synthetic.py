@@ -12,43 +12,28 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from warpskill.bench.outcomes import judged, record_outcomes
+from warpskill.bench.outcomes import camera_frame_errors, judged, record_outcomes
 from warpskill.contract.actions import ACTIONS
+from warpskill.contract.evaluation import evaluate, success_table
+from warpskill.contract.nouns import SIZES
 from warpskill.contract.results_folder import ResultsFolder
-from warpskill.engine.projection import world_to_camera
+from warpskill.optimizer.known import check_known, measured
 from warpskill.optimizer.options import OptimizeOptions
+from warpskill.optimizer.pipeline import optimize_many
+from warpskill.synthetic import make_demonstration, real_scenarios
 
 
-def camera_frame_errors(recon, truth: dict[str, np.ndarray]) -> dict[str, float]:
-    """Errors of a reconstruction against the ground truth.
+NOUN_SPREAD = 0.3
+"""Log-normal spread of real objects' largest edges around their noun's typical one (a mug,
+a bottle, a box of one name differ by about this much in log)."""
 
-    Keys: ``centre`` and ``hand`` (median over frames of the object-centre and hand-tip
-    error [m], in each scene's own camera frame, where the world's ambiguity (camera height
-    and elevation) cancels); ``size`` (sorted edge lengths, mean absolute error [m]: a
-    cuboid's axes may be permuted); ``camera_height`` [m] and ``elevation`` [rad] (absolute
-    errors); ``scale``: the scene's size relative to the truth, the median over frames of
-    the object centre's distance from the camera, reconstructed over true (scaling the
-    scene about the camera multiplies exactly this distance).
-    """
 
-    def in_camera(pos, height, elevation):
-        p = torch.as_tensor(np.asarray(pos, dtype=np.float64))
-        return world_to_camera(p, torch.tensor(float(height), dtype=torch.float64),
-                               torch.tensor(float(elevation), dtype=torch.float64)).numpy()
-
-    est = in_camera(recon.object_pos, recon.camera_height, recon.camera_elevation)
-    ref = in_camera(truth["object_pos"], truth["camera_height"], truth["camera_elevation"])
-    hand_est = in_camera(recon.hand_pos, recon.camera_height, recon.camera_elevation)
-    hand_ref = in_camera(truth["hand_pos"], truth["camera_height"], truth["camera_elevation"])
-    size_error = np.abs(np.sort(recon.object_size) - np.sort(truth["object_size"])).mean()
-    return {
-        "centre": float(np.median(np.linalg.norm(est - ref, axis=1))),
-        "hand": float(np.median(np.linalg.norm(hand_est - hand_ref, axis=1))),
-        "size": float(size_error),
-        "camera_height": float(abs(float(recon.camera_height) - float(truth["camera_height"]))),
-        "elevation": float(abs(float(recon.camera_elevation) - float(truth["camera_elevation"]))),
-        "scale": float(np.median(np.linalg.norm(est, axis=1) / np.linalg.norm(ref, axis=1))),
-    }
+def spread_noun(size: np.ndarray, rng: np.random.Generator, spread: float = NOUN_SPREAD) -> str:
+    """A noun of :data:`~warpskill.contract.nouns.SIZES` for an object of edges ``size`` (3,) [m]:
+    the one whose typical largest edge is nearest, in log, to the object's largest edge times a
+    log-normal draw of ``spread``; as for a real object, right only on average."""
+    target = np.log(np.max(size)) + spread * rng.standard_normal()
+    return min(SIZES, key=lambda noun: abs(np.log(SIZES[noun].edges[-1]) - target))
 
 
 def error_table(errors: dict[str, list[dict[str, float]]]) -> str:
@@ -85,6 +70,7 @@ def bench_synthetic(
     scenarios: str = "none",
     baseline: Path | None = None,
     save_baseline: Path | None = None,
+    nouns: bool = False,
 ) -> dict:
     """Reconstruct synthetic demonstrations of each action and print the paper's table.
 
@@ -104,12 +90,9 @@ def bench_synthetic(
             (see :func:`warpskill.synthetic.make_demonstration`).
         baseline, save_baseline: see :func:`warpskill.bench.outcomes.record_outcomes`; the
             full method's per-case outcomes are also written to ``out`` (``outcomes.json``).
+        nouns: give each demonstration an ``object_noun`` whose typical size is its object's
+            times a log-normal spread (:func:`spread_noun`), named in the case's note.
     """
-    from warpskill.contract.evaluation import evaluate, success_table
-    from warpskill.optimizer.known import check_known, measured
-    from warpskill.optimizer.pipeline import optimize_many
-    from warpskill.synthetic import make_demonstration, real_scenarios
-
     check_known({name: 1.0 for name in known})
     options = options or OptimizeOptions()
 
@@ -122,6 +105,9 @@ def bench_synthetic(
         for action in actions:
             for seed in range(seed_start, seed_start + seeds):
                 demo = make_demonstration(action, seed=seed, noise=noise, input=input, scenarios=scenarios)
+                if nouns:
+                    rng = np.random.default_rng([seed, ACTIONS.index(action)])
+                    demo = replace(demo, object_noun=spread_noun(demo.truth["object_size"], rng))
                 t = {k: torch.as_tensor(np.asarray(demo.truth[k], dtype=np.float64))
                      for k in ("object_size", "static_size", "camera_height")}
                 given = {}
@@ -144,6 +130,7 @@ def bench_synthetic(
                         folder.save(recon, folder.initialisation if init_only else folder.reconstruction)
                 seconds.append(time.perf_counter() - start)
                 situations = " ".join(real_scenarios(action, seed)) if scenarios == "real" else ""
+                situations = " ".join(filter(None, [situations, nouns and f"noun={demo.object_noun}"]))
                 outcomes.append(replace(judged(f"{action}_{seed}", evaluation, errors["full method"][-1]),
                                         note=situations))
                 if out is not None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from warpskill.cli.common import add_optimize_options, optimize_options
+from warpskill.contract import Reconstruction
 
 __all__ = ["register"]
 
@@ -112,27 +113,25 @@ def _seed_range(text: str) -> range:
 
 
 def _bench_kernels(args) -> int:
-    from warpskill.bench.kernels import bench_kernels
+    from warpskill.bench.kernels import bench_kernels  # torch and Warp: only for this command
 
     bench_kernels(device=args.device, repeats=args.repeats)
     return 0
 
 
 def _bench_speed(args) -> int:
-    from warpskill.bench.speed import bench_speed
+    from warpskill.bench.speed import bench_many, bench_speed  # torch and Warp: only for this command
 
     devices = ["cpu"] if args.device == "cpu" else ["cpu", args.device]
     bench_speed(devices=devices, engines=args.engines, repeats=args.repeats, measure_full=args.full,
                 scaling=args.scaling, threads=args.threads)
     if args.many:
-        from warpskill.bench.speed import bench_many
-
         bench_many(batches=args.many, devices=devices)
     return 0
 
 
 def _bench_synthetic(args) -> int:
-    from warpskill.bench.synthetic import bench_synthetic
+    from warpskill.bench.synthetic import bench_synthetic  # torch and Warp: only for this command
 
     options = optimize_options(args, cannot=dict(
         seed="each case is optimised with its own seed (--seeds, --seed-start)",
@@ -144,7 +143,7 @@ def _bench_synthetic(args) -> int:
 
 
 def _bench_robot(args) -> int:
-    from warpskill.bench.robot import bench_robot
+    from warpskill.bench.robot import bench_robot  # torch and Warp: only for this command
 
     if args.video and args.out is None:
         raise ValueError("--video needs an output folder: -o OUT")
@@ -159,8 +158,7 @@ def _bench_robot(args) -> int:
 
 
 def _bench_generalize(args) -> int:
-    from warpskill.bench.generalize import bench_generalize
-    from warpskill.contract import Reconstruction
+    from warpskill.bench.generalize import bench_generalize  # the robot layer (matplotlib, PyAV): only for this command
 
     recons = {str(path): Reconstruction.load(path) for path in args.reconstructions}
     bench_generalize(recons, layouts=args.layouts, engines=args.engines, seed=args.seed, device=args.device,
@@ -169,7 +167,7 @@ def _bench_generalize(args) -> int:
 
 
 def _bench_something_else(args) -> int:
-    from warpskill.bench.something_else import bench_something_else
+    from warpskill.bench.something_else import bench_something_else  # torch and Warp: only for this command
 
     if args.video and not args.robot:
         raise ValueError("--video needs --robot")
@@ -182,7 +180,7 @@ def _bench_something_else(args) -> int:
 
 
 def _bench_second_opinion(args) -> int:
-    from warpskill.bench.second_opinion import bench_second_opinion
+    from warpskill.bench.second_opinion import bench_second_opinion  # torch and Warp: only for this command
 
     result = bench_second_opinion(args.out, optimize_options(args), seeds=args.seeds, actions=args.actions,
                                   exit_view=args.exit_view, noise=args.noise, tools=args.tools,
@@ -191,7 +189,7 @@ def _bench_second_opinion(args) -> int:
 
 
 def _bench_flips(args) -> int:
-    from warpskill.bench.outcomes import flip_report, load_outcomes
+    from warpskill.bench.outcomes import flip_report, load_outcomes  # torch: only for this command
 
     print(flip_report(load_outcomes(args.baseline), load_outcomes(args.current), name=str(args.baseline)))
     return 0

@@ -11,7 +11,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
-from warpskill.contract import ResultsFolder
+from warpskill import robot, visual  # lazy packages: their names (MuJoCo, torch, Warp) load on first use
+from warpskill.contract import ResultsFolder, evaluate
 
 if TYPE_CHECKING:  # the optimiser pulls in torch and Warp: imported where used, so the command line starts fast
     from warpskill.optimizer import OptimizeOptions
@@ -20,7 +21,7 @@ __all__ = ["add_optimize_options", "add_placement_options", "installed", "optimi
            "robot_steps_available", "reconstruct", "holding_out", "report", "save_plan", "save_scene"]
 
 OPTIMIZE_FLAGS = {"device": "--device", "iterations": "--iterations", "seed": "--seed", "init_only": "--init-only",
-                  "known": "--known", "settings": "--set"}
+                  "known": "--known", "object_noun": "--object-noun", "settings": "--set"}
 """The options of :func:`add_optimize_options`: ``args`` attribute -> flag."""
 
 
@@ -45,6 +46,9 @@ def add_optimize_options(parser: argparse.ArgumentParser, *, known_names: bool =
     else:
         group.add_argument("--known", nargs="+", default=None, metavar="NAME=METRES",
                            help=f"lengths known in advance, which fix the scene's scale, e.g. object_height=0.10 {names}")
+    group.add_argument("--object-noun", default=None, metavar="NOUN",
+                       help="what the manipulated object is (e.g. mug), instead of the demonstration's noun: "
+                            "where boxes leave the scale open, its typical size is a weak prior on the object's size")
     group.add_argument("--set", dest="settings", action="append", default=[], metavar="PATH=VALUE",
                        help="any setting of the options by its dotted path, e.g. config.init_iterations=100 or "
                             "config.weights.grasp_margin=0.01 (repeatable)")
@@ -62,14 +66,14 @@ def optimize_options(args: argparse.Namespace, *, cannot: Mapping[str, str] | No
     Raises:
         ValueError: a refused option (naming it and why), a malformed ``--known`` or ``--set``.
     """
-    from warpskill.optimizer import OptimizeOptions, parse_known
+    from warpskill.optimizer import OptimizeOptions, parse_known  # torch and Warp: only for a command that optimises
 
     for name, why in (cannot or {}).items():
         if getattr(args, name) not in (None, False, []):
             raise ValueError(f"{OPTIMIZE_FLAGS[name]} cannot be used here: {why}")
     options = OptimizeOptions.build(device=args.device, seed=0 if args.seed is None else args.seed,
                                     init_only=args.init_only, known=parse_known(args.known),
-                                    iterations=args.iterations)
+                                    object_noun=args.object_noun, iterations=args.iterations)
     return options.with_settings(args.settings)
 
 
@@ -96,23 +100,20 @@ def add_placement_options(parser: argparse.ArgumentParser) -> None:
 
 def placement(args):
     """``"auto"`` (the robot's base pose is searched) unless ``--offset`` or ``--yaw`` fix it."""
-    from warpskill.robot import Placement
-
     if args.offset is None and args.yaw is None:
         return "auto"
-    default = Placement()
+    default = robot.Placement()
     offset = default.offset if args.offset is None else tuple(args.offset)
     yaw = default.yaw if args.yaw is None else math.radians(args.yaw)
-    return Placement(offset=offset, yaw=yaw)
+    return robot.Placement(offset=offset, yaw=yaw)
 
 
 def reconstruct(demos, folders: list[Path], checkpoint: Path, options: OptimizeOptions, *, quiet: bool = False,
                 pictures: bool = True):
     """Optimise ``demos`` together with ``options`` (resuming ``checkpoint``); write each npz and
     pictures into its folder."""
-    from warpskill.engine import resolve_device
-    from warpskill.optimizer import optimize_many
-    from warpskill.visual import save_pictures
+    from warpskill.engine import resolve_device  # torch and Warp: only for a command that optimises
+    from warpskill.optimizer import optimize_many  # torch and Warp: only for a command that optimises
 
     resolve_device(options.device)  # a bad device is one error line before any work
     with contextlib.ExitStack() as holding:  # the checkpoint's folder and each output folder: this process alone
@@ -123,7 +124,7 @@ def reconstruct(demos, folders: list[Path], checkpoint: Path, options: OptimizeO
             keeper = ResultsFolder(out)
             print(f"reconstruction: {keeper.save(recon, keeper.reconstruction)}")
             if pictures:
-                for name, path in save_pictures(recon, demo, out).items():
+                for name, path in visual.save_pictures(recon, demo, out).items():
                     print(f"{name}: {path}")
                 save_scene(recon, demo, out)
             report(recon, demo.action)
@@ -131,8 +132,7 @@ def reconstruct(demos, folders: list[Path], checkpoint: Path, options: OptimizeO
 
 
 def report(recon, action) -> None:
-    from warpskill.contract import evaluate
-
+    """Print whether ``recon`` meets ``action``'s success criteria, and which it fails (nothing without an action)."""
     if action:
         result = evaluate(recon, action)
         failed = [name for name, ok in result.checks.items() if not ok]
@@ -157,15 +157,9 @@ def save_plan(plan, path: Path) -> None:
 def save_scene(recon, demo, out: Path, plan=None, replay=None, *, frames=None, quiet: bool = False) -> None:
     """Write ``out/scene.rrd`` (the 3D Rerun recording, with the video ``frames`` when given) and
     say so; without rerun-sdk, say how to get it."""
-    from warpskill.visual import view
-
     try:
-        robot = None
-        if plan is not None:
-            from warpskill.robot import robot_track
-
-            robot = robot_track(plan, float(recon.fps), replay)
-        path = view(recon, demo, robot, replay, frames=frames, path=out / "scene.rrd")
+        track = None if plan is None else robot.robot_track(plan, float(recon.fps), replay)
+        path = visual.view(recon, demo, track, replay, frames=frames, path=out / "scene.rrd")
     except ModuleNotFoundError as error:
         if error.name != "rerun":
             raise

@@ -9,8 +9,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from warpskill import robot  # a lazy package: its names (placo, MuJoCo) load on first use
 from warpskill.cli.common import add_placement_options, placement
 from warpskill.cli.robot import add_layout_options, layout_from, refused
+from warpskill.contract import LayoutError, Reconstruction, skill_from
 
 __all__ = ["register"]
 
@@ -41,40 +43,34 @@ def register(commands) -> None:
 
 
 def _mjcf(args) -> int:
-    from warpskill.contract import LayoutError, Reconstruction
-    from warpskill.robot import RobotPlan, make_scene, retarget, write_mjcf
-
     recon = Reconstruction.load(args.reconstruction)
     try:
         layout = layout_from(args, recon)
         where = placement(args)
         if args.plan is not None:  # the plan's base, and its scene unless a layout is given
-            plan = RobotPlan.load(args.plan)
+            plan = robot.RobotPlan.load(args.plan)
             scene, base = plan.scene(recon) if layout is None else _carried(recon, layout), plan.base
         elif where != "auto":  # a fixed base: no planning
             scene = _carried(recon, layout)
-            base = make_scene(scene, where).base
+            base = robot.make_scene(scene, where).base
         else:  # the base pose the plan would take
-            plan = retarget(recon, layout=layout)
+            plan = robot.retarget(recon, layout=layout)
             scene, base = plan.scene(recon), plan.base
     except LayoutError as error:
         return refused(error)
-    print(f"mjcf: {write_mjcf(args.scene, scene, base)}")
+    print(f"mjcf: {robot.write_mjcf(args.scene, scene, base)}")
     return 0
 
 
 def _carried(recon, layout):
     """``recon``'s skill carried to ``layout``; ``recon`` itself without one."""
-    from warpskill.contract import skill_from
-
     return recon if layout is None else skill_from(recon).apply(layout)
 
 
 def _lerobot(args) -> int:
-    from warpskill.export import export_lerobot
-    from warpskill.robot import prefer_headless_gl
+    from warpskill.export import export_lerobot  # optional extra: export (pyarrow)
 
-    prefer_headless_gl()
+    robot.prefer_headless_gl()
     summary = export_lerobot(args.out, args.reconstructions, episodes=args.episodes, fps=args.fps, size=args.size,
                              cameras=args.cameras, seed=args.seed)
     total = sum(summary["episodes"].values())

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from warpskill import robot, visual  # lazy packages: their names (MuJoCo, torch, Warp) load on first use
 from warpskill.cli.common import (
     add_optimize_options,
     add_placement_options,
@@ -16,7 +17,7 @@ from warpskill.cli.common import (
     save_plan,
     save_scene,
 )
-from warpskill.contract import ResultsFolder
+from warpskill.contract import Demonstration, Reconstruction, ResultsFolder, evaluate
 
 __all__ = ["register"]
 
@@ -54,11 +55,10 @@ def register(commands) -> None:
 
 @holding_out
 def _demo(args) -> int:
-    from warpskill import make_demonstration
-    from warpskill.robot import prefer_headless_gl
+    from warpskill.synthetic import make_demonstration  # torch and Warp: only for this command
 
     options = optimize_options(args)
-    prefer_headless_gl()
+    robot.prefer_headless_gl()
     demo = make_demonstration(args.action, seed=options.seed)
     keeper = ResultsFolder(args.out)
     print(f"demonstration: {keeper.save(demo, keeper.demonstration)} ({args.action}, {demo.num_frames} frames)")
@@ -67,31 +67,27 @@ def _demo(args) -> int:
         return 0
     if not robot_steps_available():
         return 0
-    from warpskill.robot import PlanError, record, replay, retarget
-
     try:
-        plan = retarget(recon, placement=placement(args))
-    except PlanError as error:
+        plan = robot.retarget(recon, placement=placement(args))
+    except robot.PlanError as error:
         print(f"robot plan: none: {error}")
         return 0
     save_plan(plan, keeper.plan)
-    result = replay(plan, recon)
+    result = robot.replay(plan, recon)
     print(f"replay: {keeper.save(result, keeper.replay)} (mujoco, {result.replay_time:.2f} s); "
-          f"picture: {record(plan, recon, result, args.out)}")
+          f"picture: {robot.record(plan, recon, result, args.out)}")
     save_scene(recon, demo, args.out, plan, result, quiet=True)  # scene.rrd again, with the robot
     report(result.reconstruction, args.action)
     return 0
 
 
 def _optimize(args) -> int:
-    from warpskill.contract import Demonstration
-
     options = optimize_options(args)
     stems = [path.stem for path in args.demos]
     if len(set(stems)) < len(stems):
         raise ValueError("demonstration files must have different names: each gets OUT/<name>/")
     if args.workers is not None or args.ray_address:
-        from warpskill.cluster import INSTALL_HINT, ray_available
+        from warpskill.cluster import INSTALL_HINT, ray_available  # torch and Warp: only with --workers
 
         if ray_available():
             return _optimize_on_ray(args, options, stems)
@@ -104,13 +100,12 @@ def _optimize(args) -> int:
 
 def _optimize_on_ray(args, options, stems: list[str]) -> int:
     """``optimize --workers N``: each demonstration a Ray task into OUT/<name>/; one progress bar, a summary."""
-    from warpskill.cluster import optimize_folder
-    from warpskill.contract import Reconstruction
+    from warpskill.cluster import optimize_folder  # torch and Warp: only with --workers
 
     if args.workers is not None and args.workers < 1:
         raise ValueError("--workers must be at least 1")
     if not args.ray_address:
-        from warpskill.engine import resolve_device
+        from warpskill.engine import resolve_device  # torch and Warp: only with --workers
 
         resolve_device(options.device)  # a bad device is one error line, not one failure per demonstration
     summary = optimize_folder(
@@ -128,15 +123,11 @@ def _optimize_on_ray(args, options, stems: list[str]) -> int:
 
 def _pictures(recon, demo, folder: Path) -> None:
     """The pictures and 3D scene of one reconstruction (run in its Ray task)."""
-    from warpskill.visual import save_pictures
-
-    save_pictures(recon, demo, folder)
+    visual.save_pictures(recon, demo, folder)
     save_scene(recon, demo, folder, quiet=True)
 
 
 def _evaluate(args) -> int:
-    from warpskill.contract import Reconstruction, evaluate
-
     recon = Reconstruction.load(args.reconstruction)
     action = args.action or str(recon.action) or None
     if not action:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from warpskill.data import contact_sheet, read_recording
+
 __all__ = ["add_recording_options", "prepare", "register"]
 
 
@@ -48,8 +50,6 @@ def prepare(args, demo_path: Path, sheet_path: Path):
     Returns:
         The demonstration and the video's frames.
     """
-    from warpskill.data import contact_sheet, read_recording
-
     demo, frames = read_recording(
         args.video, masks=args.masks, labels=args.labels, polygons=args.polygons, boxes=args.boxes,
         video_id=args.video_id, contact=args.contact, detections=args.detections, action=args.action,

@@ -7,6 +7,7 @@ import math
 import sys
 from pathlib import Path
 
+from warpskill import robot  # a lazy package: its names (placo, MuJoCo) load on first use
 from warpskill.cli.common import (
     add_placement_options,
     holding_out,
@@ -14,7 +15,7 @@ from warpskill.cli.common import (
     report,
     save_plan,
 )
-from warpskill.contract import ResultsFolder
+from warpskill.contract import LayoutError, Reconstruction, ResultsFolder, skill_from
 
 __all__ = ["register"]
 
@@ -59,8 +60,6 @@ def add_layout_options(parser) -> None:
 def layout_from(args, recon):
     """The :class:`~warpskill.contract.skill.Layout` of ``--object-at``, ``--static-at`` and
     ``--object-size`` (degrees to radians) for ``recon``'s skill, or None where none is given."""
-    from warpskill.contract import skill_from
-
     if args.object_at is None and args.static_at is None:
         return None
     layout = skill_from(recon).layout
@@ -79,13 +78,10 @@ def refused(error) -> int:
 
 
 def _retarget(args) -> int:
-    from warpskill.contract import LayoutError, Reconstruction, skill_from
-    from warpskill.robot import retarget
-
     recon = Reconstruction.load(args.reconstruction)
     try:
         layout = layout_from(args, recon)
-        plan = retarget(recon, layout=layout, placement=placement(args), static_sizes=args.static_size,
+        plan = robot.retarget(recon, layout=layout, placement=placement(args), static_sizes=args.static_size,
                         keep_size=args.keep_size, object_size=None if layout is not None else args.object_size)
     except LayoutError as error:
         return refused(error)
@@ -101,19 +97,14 @@ def _retarget(args) -> int:
 
 @holding_out
 def _replay(args) -> int:
-    from warpskill.robot import prefer_headless_gl
-
-    prefer_headless_gl()
-    from warpskill.contract import Reconstruction
-    from warpskill.robot import RobotPlan, record, replay
-
+    robot.prefer_headless_gl()
     recon = Reconstruction.load(args.reconstruction)
-    plan = RobotPlan.load(args.plan)
+    plan = robot.RobotPlan.load(args.plan)
     args.out.mkdir(parents=True, exist_ok=True)
-    result = replay(plan, recon, engine=args.engine)
+    result = robot.replay(plan, recon, engine=args.engine)
     keeper = ResultsFolder(args.out)
     print(f"replay: {keeper.save(result, keeper.replay)} ({args.engine}, {result.replay_time:.2f} s)")
     if args.video:
-        print(f"video: {record(plan, plan.scene(recon), result, args.out)}")
+        print(f"video: {robot.record(plan, plan.scene(recon), result, args.out)}")
     report(result.reconstruction, result.evaluation.action)
     return 0 if result.success else 3

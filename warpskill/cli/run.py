@@ -17,9 +17,9 @@ robot plan) or the replay fails the action's criteria, 1 for bad input.
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
+from warpskill import robot, visual  # lazy packages: their names (MuJoCo, torch, Warp) load on first use
 from warpskill.cli.common import (
     add_optimize_options,
     add_placement_options,
@@ -34,9 +34,9 @@ from warpskill.cli.common import (
 )
 from warpskill.cli.prepare import add_recording_options, prepare
 from warpskill.contract import ResultsFolder
+from warpskill.data import read_video
 
 __all__ = ["register"]
-
 
 
 def register(commands) -> None:
@@ -53,8 +53,6 @@ def register(commands) -> None:
 
 @holding_out
 def _run(args) -> int:
-    from warpskill.visual import save_pictures
-
     options = optimize_options(args)
     out = args.out
     keeper = ResultsFolder(out)
@@ -69,16 +67,13 @@ def _run(args) -> int:
         print(f"prepare: done, skipped ({demo_path}, {sheet_path})")
 
     recon_path = keeper.reconstruction
-    recon = None if redo else keeper.finished_reconstruction()
-    if recon is not None and not _made_with(recon, options):
-        print(f"{recon_path}: made with other options; redoing the step")
-        recon = None
+    recon = None if redo else keeper.finished_reconstruction(options.to_json())
     if recon is None:
         redo = True
         if frames is None:
             frames = _frames(args.video, demo)
         [recon] = reconstruct([demo], [out], keeper.checkpoint, options, quiet=args.quiet, pictures=False)
-        for name, path in save_pictures(recon, demo, out, background=frames).items():
+        for name, path in visual.save_pictures(recon, demo, out, background=frames).items():
             print(f"{name}: {path}")
     else:
         print(f"optimize: done, skipped ({recon_path})")
@@ -90,23 +85,15 @@ def _run(args) -> int:
     if not robot_steps_available():
         _scene(recon, demo, args.video, out, redo)
         return 0
-    from warpskill.robot import (
-        PlanError,
-        RobotPlan,
-        prefer_headless_gl,
-        replay,
-        retarget,
-    )
-
-    prefer_headless_gl()
+    robot.prefer_headless_gl()
 
     plan_path = keeper.plan
-    plan = None if redo or not keeper.plan_csv.is_file() else keeper.load_finished(plan_path, RobotPlan.load)
+    plan = None if redo or not keeper.plan_csv.is_file() else keeper.load_finished(plan_path, robot.RobotPlan.load)
     if plan is None:
         redo = True
         try:
-            plan = retarget(recon, placement=placement(args))
-        except PlanError as error:
+            plan = robot.retarget(recon, placement=placement(args))
+        except robot.PlanError as error:
             print(f"retarget: stopped, no robot plan: {error}")
             _scene(recon, demo, args.video, out, redo)
             return 3
@@ -118,7 +105,7 @@ def _run(args) -> int:
     result = None if redo else keeper.finished_replay()
     if result is None:
         redo = True
-        result = replay(plan, recon, engine=args.engine)
+        result = robot.replay(plan, recon, engine=args.engine)
         keeper.save(result, replay_path)
         print(f"replay: {replay_path} ({args.engine}, {result.replay_time:.2f} s)")
     else:
@@ -135,22 +122,8 @@ def _scene(recon, demo, video: Path, out: Path, redo: bool, plan=None, result=No
         save_scene(recon, demo, out, plan, result, frames=_frames(video, demo))
 
 
-def _made_with(recon, options) -> bool:
-    """Whether ``recon`` records ``options`` as those that made it, the device aside (it changes
-    only the rounding); a reconstruction that records none, or unreadable ones, was not."""
-    from warpskill.optimizer import OptimizeOptions
-
-    try:
-        made = OptimizeOptions.from_json(str(recon.options))
-    except (ValueError, TypeError):  # none recorded (""), or not options of this version
-        return False
-    return replace(made, device=None) == replace(options, device=None)
-
-
 def _frames(video: Path, demo):
     """The video's frames to draw the pictures on, or None when they are gone or do not fit."""
-    from warpskill.data import read_video
-
     try:
         frames, _ = read_video(video)
     except (ValueError, OSError):

@@ -8,9 +8,10 @@ the demonstrations split evenly over the GPUs.
 
 Nothing is lost: a task writes ``OUT/<name>/reconstruction.npz`` atomically and keeps its
 checkpoint in ``OUT/<name>/checkpoint.pt`` as it goes; a rerun skips the demonstrations
-whose reconstruction is there; a worker that dies (killed, out of memory) is retried by
-Ray (``max_retries``) and the retry resumes the checkpoint; a demonstration that cannot be
-read or optimised fails alone, its reason in the :class:`Summary` and ``OUT/<name>/error.txt``.
+whose reconstruction is there and was made with the same options (the device aside); a
+worker that dies (killed, out of memory) is retried by Ray (``max_retries``) and the retry
+resumes the checkpoint; a demonstration that cannot be read or optimised fails alone, its
+reason in the :class:`Summary` and ``OUT/<name>/error.txt``.
 """
 
 from __future__ import annotations
@@ -29,14 +30,15 @@ import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Iterator, Mapping, Union
+from typing import Callable, Iterator, Mapping, Union
+
+from tqdm.auto import tqdm
 
 from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
-
-if TYPE_CHECKING:  # the optimiser pulls in torch and Warp: imported in the tasks that use it
-    from warpskill.optimizer.options import OptimizeOptions
+from warpskill.optimizer.options import OptimizeOptions
+from warpskill.optimizer.pipeline import optimize_many
 
 INSTALL_HINT = 'pip install -e ".[cluster]"'
 PID = "worker.pid"  #: the pid of the worker process running the demonstration (removed when it ends)
@@ -121,7 +123,7 @@ def ray_session(workers: int | None = None, address: str | None = None, *, gpus:
         ModuleNotFoundError: Ray is not installed (the message says how to install it).
     """
     try:
-        import ray
+        import ray  # optional extra: cluster
     except ModuleNotFoundError as error:
         raise ModuleNotFoundError(f"Ray is not installed: {INSTALL_HINT}", name="ray") from error
     if ray.is_initialized():
@@ -192,8 +194,6 @@ def optimize_folder(
         ModuleNotFoundError: Ray is not installed.
         ValueError: a name is not a plain folder name.
     """
-    from warpskill.optimizer.options import OptimizeOptions  # deferred: the optimiser pulls in torch and Warp
-
     start = time.perf_counter()
     out = Path(out)
     options = OptimizeOptions.build(options, **fields)
@@ -207,7 +207,7 @@ def optimize_folder(
     pending: list[tuple[str, Source, Path]] = []
     for name, source in demos.items():
         folder = out / name
-        if ResultsFolder(folder).finished_reconstruction() is not None:
+        if ResultsFolder(folder).finished_reconstruction(options.to_json()) is not None:
             outcomes[name] = Outcome(name, "done before", folder)
         else:
             pending.append((name, source, folder))
@@ -218,7 +218,7 @@ def optimize_folder(
         (folder / PID).unlink(missing_ok=True)
         ResultsFolder(folder).clear_attempts()
     pending.sort(key=lambda item: -_size(item[1]))  # longest first: the last task to start is a short one
-    import ray
+    import ray  # optional extra: cluster
 
     with ray_session(None if gpu else workers, address, gpus=workers if gpu and not address else None) as joined:
         startup = time.perf_counter() - start
@@ -237,8 +237,6 @@ def optimize_folder(
 def _run(ray, task, groups, options: OptimizeOptions, postprocess: Postprocess | None, out: Path, slots: int,
          total: int, before: int, progress: bool) -> dict[str, Outcome]:
     """Submit the groups, ``slots`` at a time; collect their outcomes under one progress bar."""
-    from tqdm.auto import tqdm
-
     outcomes: dict[str, Outcome] = {}
     queue, running = list(groups), {}
     bar = tqdm(total=total, initial=before, unit="demo", desc="optimize", disable=not progress, dynamic_ncols=True)
@@ -290,7 +288,7 @@ def _run(ray, task, groups, options: OptimizeOptions, postprocess: Postprocess |
 
 @functools.lru_cache(maxsize=None)
 def _remote():
-    import ray
+    import ray  # optional extra: cluster
 
     return ray.remote(_optimize_group_locked)
 
@@ -344,8 +342,6 @@ def _optimize_group(items: list[tuple[str, object, str]], options: OptimizeOptio
 
 def _optimize(names, demos, states, options: OptimizeOptions, checkpoint: Path | None,
               postprocess: Postprocess | None) -> dict[str, dict]:
-    from warpskill.optimizer.pipeline import optimize_many
-
     start = time.perf_counter()
     reconstructions = optimize_many([demos[name] for name in names], options, progress=False, checkpoint=checkpoint)
     seconds = time.perf_counter() - start

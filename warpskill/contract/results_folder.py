@@ -6,7 +6,8 @@ stated once:
 
 - A result is *finished* when its file loads and validates, not when it exists: a file
   that does not load is reported once (``OUT/x/reconstruction.npz is corrupt (...):
-  redoing it``) and the step is redone.
+  redoing it``) and the step is redone; so is a reconstruction made with other options
+  than those asked for now (:meth:`ResultsFolder.finished_reconstruction`).
 - Writes are atomic (a temporary file in the same folder, flushed to the disk, renamed over
   the result); a full disk leaves the previous file intact and says so in one line
   (:class:`ResultsFolderError`).
@@ -22,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
+import json
 import os
 import time
 from pathlib import Path
@@ -122,9 +124,20 @@ class ResultsFolder:
             print(f"{path} is corrupt ({reason}): redoing it", flush=True)
             return None
 
-    def finished_reconstruction(self) -> Reconstruction | None:
-        """The reconstruction, if finished (:meth:`load_finished`)."""
-        return self.load_finished(self.reconstruction, Reconstruction.load)
+    def finished_reconstruction(self, options: str | None = None) -> Reconstruction | None:
+        """The reconstruction, if finished (:meth:`load_finished`) and made with ``options``.
+
+        Args:
+            options: the JSON of the options asked for now (``OptimizeOptions.to_json``);
+                None: any options. A reconstruction that records other ones (the device
+                aside: it changes only the rounding), or none, is reported in one line and
+                redone.
+        """
+        recon = self.load_finished(self.reconstruction, Reconstruction.load)
+        if recon is None or options is None or _same_options(str(recon.options), options):
+            return recon
+        print(f"{self.reconstruction}: made with other options; redoing the step", flush=True)
+        return None
 
     def finished_demonstration(self) -> Demonstration | None:
         """The demonstration, if finished (:meth:`load_finished`)."""
@@ -202,6 +215,21 @@ class ResultsFolder:
             finally:
                 del _HELD[lock]
                 lock.unlink(missing_ok=True)  # while still held: a waiter then finds its file gone and retries
+
+
+def _same_options(made: str, asked: str) -> bool:
+    """Whether the options JSON ``made`` (a reconstruction's; "" when none were recorded) and
+    ``asked`` agree, the device aside."""
+    try:
+        made_fields = json.loads(made)
+    except ValueError:  # none recorded
+        return False
+    asked_fields = json.loads(asked)
+    if not isinstance(made_fields, dict):
+        return False
+    made_fields.pop("device", None)
+    asked_fields.pop("device", None)
+    return made_fields == asked_fields
 
 
 def _open_locked(lock: Path, folder: Path):

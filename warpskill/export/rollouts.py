@@ -21,6 +21,7 @@ import numpy as np
 
 from warpskill.contract.skill import Layout, LayoutError, Skill
 from warpskill.export.layouts import layouts
+from warpskill.robot import replay, replay_mujoco, retarget
 from warpskill.robot.model import FINGER_JOINTS
 from warpskill.robot.plan import PlanError, RobotPlan
 from warpskill.robot.scene_config import load_scene_config
@@ -66,7 +67,7 @@ class Camera:
 
     def view(self, base: np.ndarray):
         """The ``mujoco.MjvCamera`` of this camera for a robot at ``base`` (4, 4)."""
-        import mujoco  # deferred: the robot extra
+        import mujoco  # optional extra: robot (imported after prefer_headless_gl picks its GL)
 
         camera = mujoco.MjvCamera()
         camera.lookat[:] = base[:3, :3] @ np.array([self.ahead, 0.0, 0.0]) + base[:3, 3] + [0.0, 0.0, self.height]
@@ -118,7 +119,7 @@ class _Filming:
         self.renderer = None
 
     def start(self, model):
-        import mujoco  # deferred: the robot extra
+        import mujoco  # optional extra: robot (imported after prefer_headless_gl picks its GL)
 
         model.vis.quality.offsamples = 0  # software GL: no multisampling, no shadow or reflection passes
         self.renderer = mujoco.Renderer(model, *self.size)
@@ -143,8 +144,6 @@ def film(plan: RobotPlan, recon, *, fps: int, cameras: list[Camera], size: tuple
         ``state`` (T, 8), ``action`` (T, 8) (the plan's command at the same times) and
         camera name -> (T, H, W, 3) uint8 frames.
     """
-    from warpskill.robot import replay_mujoco  # deferred: imports MuJoCo
-
     times = np.arange(0.0, plan.t[-1] + 1e-9, 1.0 / fps)
     filming = _Filming(cameras, plan.base, size)
     try:
@@ -170,8 +169,6 @@ class Attempt:
 def rollouts(skill: Skill, *, fps: int, cameras: list[Camera], size: tuple[int, int], seed: int = 0,
              ) -> Iterator[Attempt]:
     """Endless attempts of ``skill`` in the random layouts of ``seed``; successful ones carry their :class:`Episode`."""
-    from warpskill.robot import replay, retarget  # deferred: placo and MuJoCo
-
     task = TASKS[skill.action]
     for layout in layouts(skill, seed=seed):
         recon = skill.apply(layout)

@@ -46,7 +46,7 @@ class LinkShape:
 @functools.cache
 def _model():
     """The compiled MuJoCo model of the Panda alone (cached: about 20 ms to build)."""
-    import mujoco
+    import mujoco  # optional extra: robot (imported after prefer_headless_gl picks its GL)
 
     return mujoco.MjModel.from_xml_string(mujoco_urdf())
 
@@ -76,7 +76,7 @@ def link_poses(
         ModuleNotFoundError: MuJoCo is not installed.
         RobotModelError: ``example-robot-data`` (the Panda) is not installed.
     """
-    import mujoco
+    import mujoco  # optional extra: robot (imported after prefer_headless_gl picks its GL)
 
     q = np.asarray(q, dtype=float)
     single = q.ndim == 1
@@ -119,7 +119,7 @@ def link_shapes() -> dict[str, list[LinkShape]]:
         ModuleNotFoundError: MuJoCo is not installed.
         RobotModelError: ``example-robot-data`` (the Panda) is not installed.
     """
-    import mujoco
+    import mujoco  # optional extra: robot (imported after prefer_headless_gl picks its GL)
 
     model = _model()
     shapes: dict[str, list[LinkShape]] = {name: [] for _, name in _bodies(model)}

@@ -11,6 +11,7 @@ task, joint position limits (:data:`LIMIT_MARGIN` inside) and velocity limits
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import json
 import math
 import os
@@ -61,8 +62,6 @@ STALLED = 1e-4  # [rad] ... or when no joint moved more than this in 5 steps
 @contextlib.contextmanager
 def quiet_stdout():
     """Silence C-level stdout and stderr (placo reports self-collisions of the neutral pose when loading)."""
-    import ctypes
-
     sys.stdout.flush()
     sys.stderr.flush()
     saved = [os.dup(1), os.dup(2)]
@@ -96,7 +95,7 @@ class Planner:
     """placo robot + kinematics solver for one scene."""
 
     def __init__(self, scene: Scene):
-        import placo
+        import placo  # optional extra: robot
 
         self.placo = placo
         with quiet_stdout():

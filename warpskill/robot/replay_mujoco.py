@@ -37,7 +37,7 @@ FINGER_KP = _CONFIG.panda.finger_kp  # [N / m]
 
 
 def _quat(R: np.ndarray) -> np.ndarray:
-    import mujoco
+    import mujoco  # optional extra: robot (imported after prefer_headless_gl picks its GL)
 
     q = np.zeros(4)
     mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=np.float64).reshape(9))
@@ -60,7 +60,7 @@ def build_spec(recon: Reconstruction, base_pose: np.ndarray):
     Its options, contacts, drives and colours, and the video's lights, backdrop and
     offscreen frame size, are those of :func:`~warpskill.robot.scene_config.load_scene_config`.
     """
-    import mujoco
+    import mujoco  # optional extra: robot (imported after prefer_headless_gl picks its GL)
 
     config = load_scene_config()
     panda, contact = config.panda, config.contact
@@ -110,7 +110,7 @@ def build_spec(recon: Reconstruction, base_pose: np.ndarray):
 
 def _add_visuals(spec, video) -> None:
     """The video's lights, backdrop and offscreen frame size (no effect on the physics)."""
-    import mujoco
+    import mujoco  # optional extra: robot (imported after prefer_headless_gl picks its GL)
 
     for k, light in enumerate(video.lights):
         spec.worldbody.add_light(name=f"light{k}", type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
@@ -127,7 +127,7 @@ def _add_visuals(spec, video) -> None:
 
 
 def _position_actuator(spec, joint: str, kp: float, kv: float, force: float) -> None:
-    import mujoco
+    import mujoco  # optional extra: robot (imported after prefer_headless_gl picks its GL)
 
     act = spec.add_actuator(name=joint, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
     act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
@@ -153,7 +153,7 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, video
         ``tcp`` (F, 4, 4), ``object_pos`` (F, 3), ``object_rot`` (F, 3, 3), ``held`` (F,) 1
         where both fingers touch the object, ``q`` (F, 7) simulated arm joints.
     """
-    import mujoco
+    import mujoco  # optional extra: robot (imported after prefer_headless_gl picks its GL)
 
     model = build_model(plan, recon)
     if edit_model is not None:

@@ -56,7 +56,9 @@ from __future__ import annotations
 import functools
 import re
 
+import newton
 import numpy as np
+import warp as wp
 
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.robot.model import (
@@ -68,6 +70,9 @@ from warpskill.robot.model import (
 )
 from warpskill.robot.plan import RobotPlan
 from warpskill.robot.scene_config import load_scene_config
+from warpskill.warp_log import configure_warp_log
+
+configure_warp_log()  # before Newton builds anything: no "Module ... load on device" lines unless asked for
 
 # The scene description's values under their former names (read-only aliases).
 _CONFIG = load_scene_config()
@@ -89,8 +94,6 @@ _FINGER_LINKS = ("panda_leftfinger", "panda_rightfinger")
 
 def _transform(T: np.ndarray):
     """A Warp transform from a 4x4 pose."""
-    import warp as wp
-
     q = wp.quat_from_matrix(wp.mat33(*np.asarray(T[:3, :3], dtype=np.float32).reshape(9)))
     return wp.transform(wp.vec3(*np.asarray(T[:3, 3], dtype=np.float32)), q)
 
@@ -126,8 +129,6 @@ def build_model(plan: RobotPlan, recon: Reconstruction, *, device: str | None = 
         ``finger_bodies``, ``robot_bodies``.
     """
     recon = plan.scene(recon)  # the cuboids as the plan handles them (sizes, poses: the object's start too)
-    import newton
-
     config = load_scene_config()
     panda, friction, gap = config.panda, config.contact.friction, config.newton.contact_gap
     builder = newton.ModelBuilder()
@@ -197,10 +198,6 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, devic
     Returns the arrays of :func:`warpskill.robot.replay_mujoco.simulate` (``q``: the simulated
     arm joints).
     """
-    import newton
-    import warp as wp
-
-    wp.config.quiet = True
     with wp.ScopedDevice(device):
         model, info = build_model(plan, recon)
         state_0, state_1 = model.state(), model.state()
@@ -272,8 +269,6 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, devic
 @functools.cache
 def _target_kernel():
     """The Warp kernel that copies one step's drive targets and advances the step counter."""
-    import warp as wp
-
     @wp.kernel
     def set_step_targets(targets: wp.array(dtype=wp.float32), row: wp.array(dtype=wp.int32), width: int,
                          rows: int, joint_target_q: wp.array(dtype=wp.float32)):
@@ -294,8 +289,6 @@ def _capture(advance, state_0, state_1):
     where this Warp cannot capture on the device (the replay then launches each step's
     kernels itself).
     """
-    import warp as wp
-
     graphs = []
     for source, target in ((state_0, state_1), (state_1, state_0)):
         try:

@@ -18,6 +18,7 @@ import numpy as np
 from warpskill.contract.evaluation import evaluate
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.replay import Replay
+from warpskill.robot import replay_mujoco
 from warpskill.robot.plan import RobotPlan
 
 ENGINES: tuple[str, ...] = ("mujoco", "newton")
@@ -51,13 +52,11 @@ def replay(plan: RobotPlan, recon: Reconstruction, engine: str = "mujoco", *, de
     times = np.arange(plan.start_time, plan.t[-1] + 1e-9, 1.0 / fps)
     started = time.perf_counter()
     if engine == "mujoco":
-        from warpskill.robot import replay_mujoco as backend
-
-        sim = backend.simulate(plan, recon, times, edit_model=edit_model)
+        sim = replay_mujoco.simulate(plan, recon, times, edit_model=edit_model)
     else:
-        from warpskill.robot import replay_newton as backend
+        from warpskill.robot import replay_newton  # optional extra: robot (Newton, Warp)
 
-        sim = backend.simulate(plan, recon, times, device=device)
+        sim = replay_newton.simulate(plan, recon, times, device=device)
     elapsed = time.perf_counter() - started
     closing = np.interp(times, plan.t, plan.gripper) < 0.5 * max(float(plan.gripper.max()), 1e-9)
     if plan.grasp_kind == "grasp":

@@ -20,6 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
+from warpskill import assets
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: the tomli package, a dependency there
+    import tomli as tomllib
+
 SCENE_ASSET = "robot_scene.toml"
 """Name of the scene description in :mod:`warpskill.assets`."""
 
@@ -254,17 +261,6 @@ class SceneConfigError(ValueError):
     """The scene description is missing a key, has an unknown one or a value of the wrong type."""
 
 
-def _toml_loads(text: str) -> dict:
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # Python 3.10
-        try:
-            import tomli as tomllib
-        except ModuleNotFoundError:
-            raise SceneConfigError("reading the robot scene on Python 3.10 needs the 'tomli' package") from None
-    return tomllib.loads(text)
-
-
 def _convert(value, kind, where: str):
     """``value`` of the TOML file as the field type ``kind`` (checked)."""
     if dataclasses.is_dataclass(kind):
@@ -311,7 +307,7 @@ def read_scene_config(path: str | os.PathLike) -> RobotSceneConfig:
     """
     path = Path(path)
     try:
-        data = _toml_loads(path.read_text())
+        data = tomllib.loads(path.read_text())
     except ValueError as exc:  # tomllib.TOMLDecodeError is a ValueError
         if isinstance(exc, SceneConfigError):
             raise
@@ -325,6 +321,4 @@ def read_scene_config(path: str | os.PathLike) -> RobotSceneConfig:
 @functools.cache
 def load_scene_config() -> RobotSceneConfig:
     """The installed ``assets/robot_scene.toml``, read once (cached)."""
-    from warpskill import assets
-
     return read_scene_config(assets.path(SCENE_ASSET))

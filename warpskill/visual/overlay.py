@@ -3,19 +3,16 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
 from warpskill.contract.camera import Intrinsics
+from warpskill.contract.demonstration import Demonstration
+from warpskill.contract.reconstruction import Reconstruction
 from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.raycast import raycast_masks
 from warpskill.media import HAND_COLOR, OBJECT_COLOR, STATIC_COLOR
-
-if TYPE_CHECKING:
-    from warpskill.contract.demonstration import Demonstration
-    from warpskill.contract.reconstruction import Reconstruction
 
 FILL_ALPHA = 0.5
 

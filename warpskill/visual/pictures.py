@@ -22,10 +22,11 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from warpskill.contract.demonstration import Demonstration
+from warpskill.contract.reconstruction import Reconstruction
 from warpskill.media import VIDEO_FORMATS, save_figure, write_video
 from warpskill.visual.overlay import (
     check_picture_inputs,
@@ -33,10 +34,6 @@ from warpskill.visual.overlay import (
     overlay_frames,
 )
 from warpskill.visual.plots import top_view_figure, trajectories_figure
-
-if TYPE_CHECKING:
-    from warpskill.contract.demonstration import Demonstration
-    from warpskill.contract.reconstruction import Reconstruction
 
 """RGB of the reconstructed hand (orange)."""
 

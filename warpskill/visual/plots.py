@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.collections import LineCollection
@@ -12,12 +11,10 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Polygon
 
+from warpskill.contract.demonstration import Demonstration
+from warpskill.contract.reconstruction import Reconstruction
 from warpskill.engine.projection import camera_rotation
 from warpskill.media import HAND_COLOR, HAND_HELD_COLOR, OBJECT_COLOR, STATIC_COLOR, figure, rgb
-
-if TYPE_CHECKING:
-    from warpskill.contract.demonstration import Demonstration
-    from warpskill.contract.reconstruction import Reconstruction
 
 
 _AXIS_COLORS = {"x": "tab:red", "y": "tab:green", "z": "tab:blue"}
