@@ -39,80 +39,113 @@ def minimise(
     Returns:
         The best loss each module reached.
     """
-    count = len(modules)
-    optimizer = torch.optim.Adam([{"params": list(m.parameters())} for m in modules], lr=learning_rate, amsgrad=True)
-    plateaus = [Plateau(config.plateau_patience, config.plateau_factor) for _ in modules]
-    best_loss, best_state, start = [float("inf")] * count, [copy_state(m) for m in modules], 0
-    saved = store.load(label)
-    if saved is not None:
-        for module, state in zip(modules, saved["modules"]):
-            module.load_state_dict(state)
-        optimizer.load_state_dict(saved["optimizer"])
-        for plateau, state in zip(plateaus, saved["plateaus"]):
-            plateau.best, plateau.bad = state
-        best_loss, best_state, start = saved["best_loss"], saved["best_state"], saved["iteration"]
-    groups = optimizer.param_groups  # after loading: load_state_dict replaces the group dicts
-
-    def save(iteration: int) -> None:
-        store.save(label, dict(
-            modules=[m.state_dict() for m in modules], optimizer=optimizer.state_dict(),
-            plateaus=[(p.best, p.bad) for p in plateaus], best_loss=best_loss, best_state=best_state,
-            iteration=iteration,
-        ))
-
-    def live() -> list[int]:
-        return [b for b in range(count) if groups[b]["lr"] >= learning_rate * config.min_lr_ratio]
-
-    bar = tqdm(total=iterations, initial=start, desc=label, disable=not progress, leave=False)
-    # The bar sums over every module: its latest loss (a stopped module's last) beside its best,
-    # so the two totals are of the same quantity and best <= loss.
-    latest = list(best_loss)
-    iteration = start
-    while iteration < iterations and (active := live()):
-        optimizer.zero_grad(set_to_none=True)  # modules that have stopped get no gradient: Adam skips them
+    run = _AdamRun(modules, learning_rate, config, store, label)
+    bar = tqdm(total=iterations, initial=run.start, desc=label, disable=not progress, leave=False)
+    iteration = run.start
+    while iteration < iterations and (active := run.live()):
+        run.optimizer.zero_grad(set_to_none=True)  # modules that have stopped get no gradient: Adam skips them
         losses = torch.stack([sum(terms.values()) for terms in objective(active)])
         values = losses.detach().cpu().tolist()  # the iteration's one device-to-host copy
-        for b, value in zip(active, values):
-            if not np.isfinite(value):
-                which = f" (scene {b})" if count > 1 else ""
-                raise FloatingPointError(f"{label}{which}: the loss became {value} at iteration {iteration}")
+        run.check_finite(active, values, iteration)
         losses.sum().backward()
-        lr_before = [group["lr"] for group in groups]
-        for b, value in zip(active, values):
-            latest[b] = value
-            if value < best_loss[b]:
-                best_loss[b], best_state[b] = value, copy_state(modules[b])
-            # Warm-up: Adam's first steps move every parameter by about lr, whatever its gradient,
-            # which can push the hand out of a grasp that only just holds.
-            groups[b]["lr"] = lr_before[b] * min(1.0, (iteration + 1) / config.warmup_iterations)
-        optimizer.step()
-        for b, value in zip(active, values):
-            groups[b]["lr"] = lr_before[b]
-            if plateaus[b].step(value, groups[b]):
-                # Back to the best parameters, and forget the momentum that led away from them.
-                modules[b].load_state_dict(best_state[b])
-                for parameter in modules[b].parameters():
-                    optimizer.state.pop(parameter, None)
+        run.step(active, values, iteration)
         iteration += 1
         for rung, margin in rungs if rivals is not None else ():
             if iteration == rung:
-                for b in _behind_rivals(rivals, best_loss, margin):
-                    groups[b]["lr"] = 0.0
+                run.stop(_behind_rivals(rivals, run.best_loss, margin))
         bar.update(1)
-        bar.set_postfix(loss=f"{sum(latest):.4f}", best=f"{sum(best_loss):.4f}", lr=f"{groups[active[0]]['lr']:.1e}",
-                        **({"running": f"{len(active)}/{count}"} if count > 1 else {}))
+        bar.set_postfix(run.postfix(active))
         if iteration % config.checkpoint_every == 0:
-            save(iteration)
+            run.save(iteration)
     bar.close()
-    unrun = [b for b in range(count) if best_loss[b] == float("inf")]
-    if unrun:  # no iteration ran: report the loss where the parameters are
-        with torch.no_grad():
-            for b, terms in zip(unrun, objective(unrun)):
-                best_loss[b] = float(sum(terms.values()))
-    for module, state in zip(modules, best_state):
-        module.load_state_dict(state)
-    save(iterations)
-    return best_loss
+    return run.finish(objective, iterations)
+
+
+class _AdamRun:
+    """The state of one :func:`minimise` call: Adam, each module's plateau schedule, best loss
+    and parameters, resumed from and saved to the checkpoint under ``label``."""
+
+    def __init__(self, modules: Sequence[torch.nn.Module], learning_rate: float, config: OptimizeConfig,
+                 store: Checkpoint, label: str):
+        self.modules, self.learning_rate, self.config, self.store, self.label = modules, learning_rate, config, store, label
+        self.optimizer = torch.optim.Adam([{"params": list(m.parameters())} for m in modules], lr=learning_rate,
+                                          amsgrad=True)
+        self.plateaus = [Plateau(config.plateau_patience, config.plateau_factor) for _ in modules]
+        self.best_loss, self.best_state, self.start = [float("inf")] * len(modules), [copy_state(m) for m in modules], 0
+        saved = store.load(label)
+        if saved is not None:
+            for module, state in zip(modules, saved["modules"]):
+                module.load_state_dict(state)
+            self.optimizer.load_state_dict(saved["optimizer"])
+            for plateau, state in zip(self.plateaus, saved["plateaus"]):
+                plateau.best, plateau.bad = state
+            self.best_loss, self.best_state, self.start = saved["best_loss"], saved["best_state"], saved["iteration"]
+        self.groups = self.optimizer.param_groups  # after loading: load_state_dict replaces the group dicts
+        # The progress bar sums over every module: its latest loss (a stopped module's last)
+        # beside its best, so the two totals are of the same quantity and best <= loss.
+        self.latest = list(self.best_loss)
+
+    def live(self) -> list[int]:
+        """The modules whose learning rate has not decayed below ``min_lr_ratio`` of its start."""
+        floor = self.learning_rate * self.config.min_lr_ratio
+        return [b for b in range(len(self.modules)) if self.groups[b]["lr"] >= floor]
+
+    def check_finite(self, active: list[int], values: list[float], iteration: int) -> None:
+        """Raise FloatingPointError naming the scene whose loss is NaN or infinite."""
+        for b, value in zip(active, values):
+            if not np.isfinite(value):
+                which = f" (scene {b})" if len(self.modules) > 1 else ""
+                raise FloatingPointError(f"{self.label}{which}: the loss became {value} at iteration {iteration}")
+
+    def step(self, active: list[int], values: list[float], iteration: int) -> None:
+        """Record the losses, take one Adam step (warmed up), lower plateaued rates."""
+        lr_before = [group["lr"] for group in self.groups]
+        for b, value in zip(active, values):
+            self.latest[b] = value
+            if value < self.best_loss[b]:
+                self.best_loss[b], self.best_state[b] = value, copy_state(self.modules[b])
+            # Warm-up: Adam's first steps move every parameter by about lr, whatever its gradient,
+            # which can push the hand out of a grasp that only just holds.
+            self.groups[b]["lr"] = lr_before[b] * min(1.0, (iteration + 1) / self.config.warmup_iterations)
+        self.optimizer.step()
+        for b, value in zip(active, values):
+            self.groups[b]["lr"] = lr_before[b]
+            if self.plateaus[b].step(value, self.groups[b]):
+                # Back to the best parameters, and forget the momentum that led away from them.
+                self.modules[b].load_state_dict(self.best_state[b])
+                for parameter in self.modules[b].parameters():
+                    self.optimizer.state.pop(parameter, None)
+
+    def stop(self, modules: list[int]) -> None:
+        """Stop these modules where they are."""
+        for b in modules:
+            self.groups[b]["lr"] = 0.0
+
+    def postfix(self, active: list[int]) -> dict[str, str]:
+        """The progress bar's numbers: summed latest and best loss, a running module's rate."""
+        count = len(self.modules)
+        return {"loss": f"{sum(self.latest):.4f}", "best": f"{sum(self.best_loss):.4f}",
+                "lr": f"{self.groups[active[0]]['lr']:.1e}", **({"running": f"{len(active)}/{count}"} if count > 1 else {})}
+
+    def save(self, iteration: int) -> None:
+        """Checkpoint everything needed to resume after ``iteration`` iterations."""
+        self.store.save(self.label, dict(
+            modules=[m.state_dict() for m in self.modules], optimizer=self.optimizer.state_dict(),
+            plateaus=[(p.best, p.bad) for p in self.plateaus], best_loss=self.best_loss, best_state=self.best_state,
+            iteration=iteration,
+        ))
+
+    def finish(self, objective, iterations: int) -> list[float]:
+        """Leave every module at its best parameters, save, and return the best losses."""
+        unrun = [b for b in range(len(self.modules)) if self.best_loss[b] == float("inf")]
+        if unrun:  # no iteration ran: report the loss where the parameters are
+            with torch.no_grad():
+                for b, terms in zip(unrun, objective(unrun)):
+                    self.best_loss[b] = float(sum(terms.values()))
+        for module, state in zip(self.modules, self.best_state):
+            module.load_state_dict(state)
+        self.save(iterations)
+        return self.best_loss
 
 
 def _behind_rivals(rivals: Sequence[object | None], best_loss: Sequence[float], margin: float) -> list[int]:
@@ -150,4 +183,5 @@ class Plateau:
 
 
 def copy_state(module: torch.nn.Module) -> dict[str, torch.Tensor]:
+    """A detached copy of ``module``'s parameters and buffers."""
     return {k: v.detach().clone() for k, v in module.state_dict().items()}
