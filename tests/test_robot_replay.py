@@ -37,6 +37,22 @@ def test_mujoco_replay_succeeds(action, seed):
         assert gap.max() < np.linalg.norm(recon.object_size)
 
 
+def test_an_edited_model_keeps_a_heavier_object_on_the_table():
+    recon = truth("push_left_to_right", 0)
+    plan = robot.retarget(recon)
+
+    def heavier(model):  # the object twice as heavy, same density
+        body = model.body("object").id
+        model.body_mass[body] *= 2.0
+        model.body_inertia[body] *= 2.0
+
+    result = robot.replay(plan, recon, edit_model=heavier)
+    assert result.success, result.evaluation.checks
+    # The contacts are as stiff as for the built mass: the pushed object slides on the table, never through it.
+    assert np.isfinite(result.reconstruction.object_pos).all()
+    assert result.reconstruction.object_pos[:, 2].min() > 0.0
+
+
 def test_cli_retarget_and_replay(tmp_path, capsys):
     recon = truth("pick_up", 0)
     recon.save(tmp_path / "recon.npz")

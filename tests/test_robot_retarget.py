@@ -164,6 +164,24 @@ def test_push_poses_face_the_way_the_object_moves():
     assert moving_back and all(pose.name.startswith("push_-y") for _, pose in moving_back)
 
 
+def test_a_push_presses_the_face_most_square_to_the_motion():
+    from warpskill.robot.grasps import candidate_poses, rank_poses
+
+    turn = np.radians(148.0)  # the cuboid turned 148 deg: one face's normal is 32 deg off the motion, one 58 deg
+    R = np.array([[np.cos(turn), -np.sin(turn), 0.0], [np.sin(turn), np.cos(turn), 0.0], [0.0, 0.0, 1.0]])
+    poses = candidate_poses(R, np.array([0.055, 0.074, 0.09]), push_height=0.0, pushing=True)
+    # The demonstrated hand came in along the 58-deg face's normal (from the front left, tilted down).
+    hand_axis = np.array([-0.53, -0.848, 0.8])
+    ranked = rank_poses(poses, R, hand_axis, push_direction=np.array([1.0, 0.0, 0.0]))
+
+    def slant(pose):  # [deg] between the pose's horizontal approach and the motion (+x)
+        approach = R @ pose.pose[:3, 2]
+        return np.degrees(np.arccos(approach[0] / np.linalg.norm(approach[:2])))
+
+    assert {round(slant(pose)) for _, pose in ranked} == {32, 58}
+    assert round(slant(ranked[0][1])) == 32
+
+
 def test_a_thin_object_is_pushed_by_the_fingertips_above_the_table():
     from warpskill.robot.grasps import FINGERTIP_BELOW_TCP, candidate_poses
 

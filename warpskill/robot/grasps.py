@@ -40,6 +40,7 @@ PUSH_BELOW_TOP = 0.005  # [m] a push's TCP stays this far below the top face (th
 HOOK_HEIGHT = 0.03  # [m] TCP height above the object's bottom of a hook
 HOOK_OFFSET = 0.012  # [m] TCP outside the hooked face: the closed fingers' half thickness
 HOOK_CLEARANCE = 0.015  # [m] the approaching fingertips pass this far outside the hooked face's top edge
+SLANT_WEIGHT = 2.0  # [deg per deg] cost of a pressing pose's horizontal slant to the push direction
 
 
 @dataclasses.dataclass(frozen=True)
@@ -156,22 +157,29 @@ def candidate_poses(object_rot: np.ndarray, object_size: np.ndarray, *, push_hei
 
 def rank_poses(poses: list[GraspPose], object_rot: np.ndarray, hand_axis: np.ndarray, *,
                push_direction: np.ndarray | None = None) -> list[tuple[float, GraspPose]]:
-    """Poses sorted by the angle [deg] between their approach and the demonstrated one.
+    """Poses sorted by cost [deg]: the angle between their approach and the demonstrated one.
 
     The demonstrated approach is ``-hand_axis`` (the hand axis runs from the tip to the
     arm). With ``push_direction`` (push and pull: the object's horizontal displacement),
     only poses whose horizontal approach points along it (within 60 degrees) are kept: a
-    push moves the object the way the pressing fingers face.
+    push moves the object the way the pressing fingers face. A pressing pose (push, hook)
+    then also counts :data:`SLANT_WEIGHT` times the angle between its horizontal approach
+    and ``push_direction``: a face pressed at a slant turns the object away, and the fingers
+    slide off it (the more so on a slippery table), so the face most square to the motion
+    comes first unless it is much further from the demonstrated approach.
     """
     demo = -np.asarray(hand_axis, float) / np.linalg.norm(hand_axis)
     ranked = []
     for pose in poses:
         a = object_rot @ pose.pose[:3, 2]
+        angle = math.degrees(math.acos(float(np.clip(a @ demo, -1.0, 1.0))))
         if push_direction is not None:
             a_h = a[:2] / max(np.linalg.norm(a[:2]), 1e-9)
             d_h = push_direction[:2] / max(np.linalg.norm(push_direction[:2]), 1e-9)
             if np.linalg.norm(a[:2]) < 0.2 or a_h @ d_h < 0.5:
                 continue
-        ranked.append((math.degrees(math.acos(float(np.clip(a @ demo, -1.0, 1.0)))), pose))
+            if pose.kind == "push":
+                angle += SLANT_WEIGHT * math.degrees(math.acos(float(np.clip(a_h @ d_h, -1.0, 1.0))))
+        ranked.append((angle, pose))
     ranked.sort(key=lambda item: item[0])
     return ranked

@@ -147,7 +147,10 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, video
     """Run the plan; sample the TCP, the object and the finger contacts at plan ``times``.
 
     ``edit_model(model)``, where given, changes the built ``mujoco.MjModel`` in place before
-    the run (a perturbed mass, friction or object start).
+    the run (a perturbed mass, friction or object start); the model's derived constants
+    (``mj_setConst``: the inverse weights that scale every contact's softness, the subtree
+    masses) are then recomputed, so that a heavier object is not simulated with the contact
+    softness of the lighter one (which lets it sink through the table and the run blow up).
 
     Returns:
         ``tcp`` (F, 4, 4), ``object_pos`` (F, 3), ``object_rot`` (F, 3, 3), ``held`` (F,) 1
@@ -158,6 +161,7 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, video
     model = build_model(plan, recon)
     if edit_model is not None:
         edit_model(model)
+        mujoco.mj_setConst(model, mujoco.MjData(model))
     data = mujoco.MjData(model)
     arm_qpos = [model.joint(name).qposadr[0] for name in ARM_JOINTS]
     finger_qpos = [model.joint(name).qposadr[0] for name in FINGER_JOINTS]
