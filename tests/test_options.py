@@ -27,8 +27,8 @@ from warpskill.synthetic import make_demonstration
 
 SMALL = dict(image_size=(48, 84), duration=1.5)  # even: an MP4 keeps the width
 ASKED = ["--iterations", "2", "--set", "config.init_iterations=3", "--set", "config.weights.grasp_margin=0.01",
-         "--seed", "5", "--device", "cpu", "--known", "object_height=0.10", "--quiet"]
-EXPECTED = OptimizeOptions(device="cpu", seed=5, known={"object_height": 0.10},
+         "--seed", "5", "--device", "cpu", "--known", "object_height=0.10", "--object-noun", "mug", "--quiet"]
+EXPECTED = OptimizeOptions(device="cpu", seed=5, known={"object_height": 0.10}, object_noun="mug",
                            config=replace(OptimizeConfig(), iterations=2, init_iterations=3,
                                           weights=replace(LossWeights(), grasp_margin=0.01)))
 """The options ``ASKED`` stands for."""

@@ -37,6 +37,8 @@ def register(commands) -> None:
     synthetic.add_argument("--seed-start", type=int, default=0, help="first seed")
     synthetic.add_argument("--scenarios", choices=("none", "real"), default="none",
                            help="with --input boxes: also the held-out real videos' situations (mixed in by seed)")
+    synthetic.add_argument("--nouns", action="store_true",
+                           help="give each object a noun whose typical size is its own times a log-normal spread")
     add_optimize_options(synthetic, known_names=True)
     _add_baseline_options(synthetic)
     synthetic.set_defaults(run=_bench_synthetic)
@@ -138,7 +140,7 @@ def _bench_synthetic(args) -> int:
         init_only="the table already has the initialisation-only row"))
     bench_synthetic(options, seeds=args.seeds, noise=args.noise, actions=args.actions, out=args.out, input=args.input,
                     known=args.known_names, seed_start=args.seed_start, scenarios=args.scenarios,
-                    baseline=args.baseline, save_baseline=args.save_baseline)
+                    baseline=args.baseline, save_baseline=args.save_baseline, nouns=args.nouns)
     return 0
 
 

@@ -130,8 +130,8 @@ class ResultsFolder:
         Args:
             options: the JSON of the options asked for now (``OptimizeOptions.to_json``);
                 None: any options. A reconstruction that records other ones (the device
-                aside: it changes only the rounding), or none, is reported in one line and
-                redone.
+                aside: it changes only the rounding) is reported in one line and redone; one
+                that records none is taken as it is.
         """
         recon = self.load_finished(self.reconstruction, Reconstruction.load)
         if recon is None or options is None or _same_options(str(recon.options), options):
@@ -218,18 +218,34 @@ class ResultsFolder:
 
 
 def _same_options(made: str, asked: str) -> bool:
-    """Whether the options JSON ``made`` (a reconstruction's; "" when none were recorded) and
-    ``asked`` agree, the device aside."""
+    """Whether the options JSON ``made`` (a reconstruction's) and ``asked`` agree on every
+    field both record, the device aside. A reconstruction that records none (made
+    elsewhere, or before options were recorded) is taken as it is."""
+    if not made.strip():
+        return True
     try:
         made_fields = json.loads(made)
-    except ValueError:  # none recorded
+    except ValueError:
         return False
     asked_fields = json.loads(asked)
     if not isinstance(made_fields, dict):
         return False
     made_fields.pop("device", None)
     asked_fields.pop("device", None)
-    return made_fields == asked_fields
+    return _agree(made_fields, asked_fields)
+
+
+def _agree(made: dict, asked: dict) -> bool:
+    """Whether two nested option dicts agree on the keys both have (a field added since the
+    reconstruction was made does not make it stale)."""
+    for key in made.keys() & asked.keys():
+        a, b = made[key], asked[key]
+        if isinstance(a, dict) and isinstance(b, dict):
+            if not _agree(a, b):
+                return False
+        elif a != b:
+            return False
+    return True
 
 
 def _open_locked(lock: Path, folder: Path):

@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from warpskill.contract.demonstration import Demonstration
+from warpskill.contract.nouns import typical_size
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.guess import OBJECT_DEPTH_HYPOTHESES, initial_guess
 from warpskill.optimizer.inputs import (
@@ -61,6 +62,8 @@ class Evidence:
             masks' own resolution: a few pixels tell the object on top from the object behind).
         behind: (N,) 1 in frames where the static box hides the object's lower part
             (:func:`~warpskill.optimizer.inputs.cut_by_static`); None when there are none.
+        typical_edge: [m] the largest edge of the typical size of the object's noun where its
+            size prior applies (``weights.object_noun_size`` on); None elsewhere.
     """
 
     demo: Demonstration
@@ -71,19 +74,24 @@ class Evidence:
     uncertain: torch.Tensor | None
     resting: np.ndarray
     behind: torch.Tensor | None
+    typical_edge: float | None = None
 
 
 def read_evidence(demo: Demonstration, known: dict[str, float], config: OptimizeConfig,
-                  device: torch.device) -> Evidence:
-    """The :class:`Evidence` of one demonstration with its ``known`` lengths."""
+                  device: torch.device, noun: str | None = None) -> Evidence:
+    """The :class:`Evidence` of one demonstration with its ``known`` lengths and the object's
+    ``noun`` (:func:`~warpskill.contract.nouns.typical_size`; None: no noun)."""
     inputs = working_inputs(demo, config, device)
-    weights = config.weights.for_scene(known_length=bool(known), object_from_boxes=bool(inputs.targets.boxed[1]))
+    typical = typical_size(noun)
+    weights = config.weights.for_scene(known_length=bool(known), object_from_boxes=bool(inputs.targets.boxed[1]),
+                                       noun_size_known=typical is not None)
+    typical_edge = float(typical.edges[-1]) if typical is not None and weights.object_noun_size > 0 else None
     held = held_after_contact(inputs.masks.cpu().numpy(), inputs.contact_signal)
     rest = cut = np.zeros(demo.num_frames, dtype=bool)
     if demo.num_static:
         full = demo.mask_stack(*demo.image_size)
         rest, cut = rests_on_static(full, inputs.contact_signal), cut_by_static(full, inputs.contact_signal)
-    return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut))
+    return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut), typical_edge)
 
 
 @dataclass

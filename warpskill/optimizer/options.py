@@ -34,6 +34,10 @@ class OptimizeOptions:
         known: lengths known in advance [m] as sorted ``(name, metres)`` pairs, which fix
             the scene's scale; names in :data:`warpskill.optimizer.known.KNOWN_LENGTHS`.
             A mapping is accepted and normalised.
+        object_noun: what the manipulated object is (e.g. ``"mug"``), replacing the
+            demonstration's ``object_noun``; where the boxes leave the scale open, its typical
+            size (:func:`warpskill.contract.nouns.typical_size`) is a weak prior on the
+            object's largest edge. A noun without a typical size adds no prior.
         config: iterations, learning rates, resolution, loss weights, physics constants.
     """
 
@@ -41,6 +45,7 @@ class OptimizeOptions:
     seed: int = 0
     init_only: bool = False
     known: tuple[tuple[str, float], ...] = ()
+    object_noun: str | None = None
     config: OptimizeConfig = field(default_factory=OptimizeConfig)
 
     def __post_init__(self) -> None:
@@ -50,6 +55,8 @@ class OptimizeOptions:
         object.__setattr__(self, "init_only", bool(self.init_only))
         if self.device is not None:
             object.__setattr__(self, "device", str(self.device))
+        if self.object_noun is not None and not isinstance(self.object_noun, str):
+            raise TypeError(f"object_noun must be a string, got {type(self.object_noun).__name__}")
         if not isinstance(self.config, OptimizeConfig):
             raise TypeError(f"config must be an OptimizeConfig, got {type(self.config).__name__}")
 

@@ -22,6 +22,7 @@ import numpy as np
 import torch
 
 from warpskill.contract.demonstration import Demonstration
+from warpskill.contract.nouns import typical_size
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.engine.device import resolve_device
 from warpskill.engine.distances import box_signed_distance
@@ -70,7 +71,7 @@ def optimize(
             existing checkpoint of the same demonstration and options is resumed.
         backend: the rollout and rasterizer (default: the Warp engine).
         **fields: fields of :class:`OptimizeOptions` replacing those of ``options``
-            (``device``, ``seed``, ``init_only``, ``known``, ``config``), and ``iterations``
+            (``device``, ``seed``, ``init_only``, ``known``, ``object_noun``, ``config``), and ``iterations``
             for ``config.iterations``; e.g. ``known={"object_height": 0.10}``.
 
     Returns:
@@ -122,8 +123,9 @@ def optimize_many(
     options = replace(options, device=str(device))  # saved as it ran: None and "cpu" are one run
     torch.manual_seed(options.seed)
     knowns = _knowns_each(options, known_each, len(demos))
-    store = Checkpoint(checkpoint, _run_id(demos, options, backend, knowns))
-    evidence = [read_evidence(demo, known, config, device) for demo, known in zip(demos, knowns)]
+    nouns = [_object_noun(demo, options) for demo in demos]
+    store = Checkpoint(checkpoint, _run_id(demos, options, backend, knowns, nouns))
+    evidence = [read_evidence(demo, known, config, device, noun) for demo, known, noun in zip(demos, knowns, nouns)]
 
     # Stage (a): each object-depth hypothesis; the depth hypotheses of a demonstration are
     # rivals, those clearly behind stop early (``config.rival_rungs``), the lowest loss wins.
@@ -163,13 +165,24 @@ def _knowns_each(options: OptimizeOptions, known_each: Sequence[Mapping[str, flo
     return [check_known(k) for k in known_each]
 
 
+def _object_noun(demo: Demonstration, options: OptimizeOptions) -> str | None:
+    """The object's noun: ``options.object_noun``, else the demonstration's; one line says so
+    when the noun has no typical size (the run goes on without a size prior)."""
+    noun = options.object_noun or demo.object_noun
+    if noun and typical_size(noun) is None:
+        print(f"object noun {noun!r}: no typical size known, so no size prior", flush=True)
+    return noun
+
+
 def _run_id(demos: Sequence[Demonstration], options: OptimizeOptions, backend: Backend,
-            knowns: Sequence[dict[str, float]]) -> str:
+            knowns: Sequence[dict[str, float]], nouns: Sequence[str | None]) -> str:
     """The checkpoint's identity of this run (:func:`~warpskill.optimizer.checkpoint.fingerprint`,
-    with the known lengths where any is given)."""
+    with the known lengths and the objects' nouns where any is given)."""
     run_id = fingerprint(demos, options.config, options.seed, backend)
     if any(knowns):
         run_id = hashlib.sha256((run_id + repr(knowns)).encode()).hexdigest()
+    if any(nouns):
+        run_id = hashlib.sha256((run_id + repr(nouns)).encode()).hexdigest()
     return run_id
 
 
@@ -189,7 +202,7 @@ def _stage_a_objective(candidates: Sequence[Candidate], evidence: Sequence[Evide
                                [e.inputs.targets for e in seen])
         return [
             initial_objective(scene, masks, e.inputs.targets, e.inputs.contact, e.demo.fps, e.weights, e.uncertain,
-                              candidates[j].support, e.behind)
+                              candidates[j].support, e.behind, e.typical_edge)
             for j, scene, masks, e in zip(live, scenes, rendered, seen)
         ]
 
@@ -252,7 +265,7 @@ def _stage_b_objective(hypotheses: Sequence[PhysicsHypothesis], evidence: Sequen
         for b, result, masks in zip(live, results, rendered):
             h, e = hypotheses[b], evidence[hypotheses[b].demo]
             terms.append(physical_objective(result, masks, e.inputs.targets, h.contact, e.inputs.object_visible,
-                                            e.weights, h.support, e.behind))
+                                            e.weights, h.support, e.behind, e.typical_edge))
         return terms
 
     return objective

@@ -143,19 +143,36 @@ def footprint_prior(scene: SceneTrajectories, weights: LossWeights) -> torch.Ten
     return weights.object_footprint * torch.log(scene.object_size[1] / scene.object_size[0]).square()
 
 
+def noun_size_prior(scene: SceneTrajectories, weights: LossWeights, typical_edge: float) -> torch.Tensor:
+    """Weak prior on the scene's size from what the object is: ``log(largest edge / typical_edge)^2``,
+    weighted, ``typical_edge`` [m] being the largest edge of its noun's typical size
+    (:func:`warpskill.contract.nouns.typical_size`).
+
+    Boxes leave the scale open (a larger scene farther away draws the same boxes), and the
+    camera-height prior alone would decide it. The largest edge, along whichever axis: boxes
+    show neither the object's depth nor how thin it is, and a table of typical sizes is
+    surest of an object's longest extent (a fork's length, not its thickness).
+    :meth:`~warpskill.optimizer.weights.LossWeights.for_scene` says where it applies.
+    """
+    return weights.object_noun_size * torch.log(scene.object_size.max() / typical_edge).square()
+
+
 def scene_priors(
     scene: SceneTrajectories, weights: LossWeights, supported: torch.Tensor | None = None,
-    behind: torch.Tensor | None = None, *, whole_object_behind: bool = False,
+    behind: torch.Tensor | None = None, *, whole_object_behind: bool = False, typical_edge: float | None = None,
 ) -> dict[str, torch.Tensor]:
     """The terms both stages add on the scene itself: the camera-height and footprint priors, the
     static boxes held out of the object and, where given, the placements "on the static" (``supported``,
     (N,)) and "behind the static" (``behind``, (N,); with ``whole_object_behind``, the
-    object's front rather than its centre: see :func:`in_front_of_back_penalty`)."""
+    object's front rather than its centre: see :func:`in_front_of_back_penalty`) and the size
+    prior of the object's noun (``typical_edge`` [m]: see :func:`noun_size_prior`)."""
     terms = {
         "camera height": camera_height_prior(scene, weights),
         "object footprint": footprint_prior(scene, weights),
         "static in object": static_in_object_penalty(scene, weights),
     }
+    if typical_edge is not None:
+        terms["object noun size"] = noun_size_prior(scene, weights, typical_edge)
     if supported is not None:
         terms["on the static"] = off_static_penalty(scene, supported, weights)
     if behind is not None:
