@@ -134,8 +134,26 @@ def _check_shape(
             raise ReconstructionError(f"{key}: expected shape {expected} with {want} = {bound}{origin}, got {shape}")
 
 
+class SceneCounts:
+    """``num_frames`` and ``num_static`` of a record with per-frame times ``t`` (N,) and
+    static positions ``static_pos`` (K, 3)."""
+
+    t: np.ndarray
+    static_pos: np.ndarray
+
+    @property
+    def num_frames(self) -> int:
+        """N, the number of frames."""
+        return self.t.shape[0]
+
+    @property
+    def num_static(self) -> int:
+        """K, the number of static objects."""
+        return self.static_pos.shape[0]
+
+
 @dataclasses.dataclass
-class Reconstruction:
+class Reconstruction(SceneCounts):
     """Hand, object, static objects and camera found for one demonstration.
 
     Fields are exactly the reconstruction keys of ``docs/formats.md``; shapes in
@@ -197,16 +215,6 @@ class Reconstruction:
     def save(self, path: str | os.PathLike) -> None:
         """Write the reconstruction ``.npz`` to ``path`` atomically (all keys, compressed)."""
         save_npz_atomic(path, {name: getattr(self, name) for name in FIELD_SHAPES})
-
-    @property
-    def num_frames(self) -> int:
-        """N, the number of frames."""
-        return self.t.shape[0]
-
-    @property
-    def num_static(self) -> int:
-        """K, the number of static objects."""
-        return self.static_pos.shape[0]
 
     def object_corners(self) -> np.ndarray:
         """(N, 8, 3) world corners [m] of the manipulated cuboid in every frame."""

@@ -43,6 +43,16 @@ Loaded = TypeVar("Loaded")
 _HELD: dict[Path, list] = {}
 
 
+class _File:
+    """A file of the results folder: ``folder.<name>`` is its path in that folder."""
+
+    def __init__(self, name: str):
+        self.name = name
+
+    def __get__(self, folder, owner=None) -> Path:
+        return self if folder is None else folder.path / self.name
+
+
 class ResultsFolderError(OSError):
     """A result could not be written (the disk is full); the message says what was kept."""
 
@@ -70,45 +80,22 @@ class ResultsFolder:
     def __repr__(self) -> str:
         return f"ResultsFolder({str(self.path)!r})"
 
-    @property
-    def reconstruction(self) -> Path:
-        return self.path / self.RECONSTRUCTION
-
-    @property
-    def initialisation(self) -> Path:
-        return self.path / self.INITIALISATION
-
-    @property
-    def demonstration(self) -> Path:
-        return self.path / self.DEMONSTRATION
-
-    @property
-    def plan(self) -> Path:
-        return self.path / self.PLAN
+    reconstruction = _File(RECONSTRUCTION)
+    initialisation = _File(INITIALISATION)
+    demonstration = _File(DEMONSTRATION)
+    plan = _File(PLAN)
+    replay = _File(REPLAY)
+    checkpoint = _File(CHECKPOINT)
+    error = _File(ERROR)
+    attempts = _File(ATTEMPTS)
 
     @property
     def plan_csv(self) -> Path:
         return self.plan.with_suffix(".csv")
 
-    @property
-    def replay(self) -> Path:
-        return self.path / self.REPLAY
-
     def engine_replay(self, engine: str) -> Path:
         """The replay in one engine, ``replay_<engine>.npz``, when several engines replay one plan."""
         return self.path / f"replay_{engine}.npz"
-
-    @property
-    def checkpoint(self) -> Path:
-        return self.path / self.CHECKPOINT
-
-    @property
-    def error(self) -> Path:
-        return self.path / self.ERROR
-
-    @property
-    def attempts(self) -> Path:
-        return self.path / self.ATTEMPTS
 
     def load_finished(self, path: Path, load: Callable[[Path], Loaded]) -> Loaded | None:
         """``load(path)`` when the file loads; None when it is missing or corrupt (then it is redone).

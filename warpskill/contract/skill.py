@@ -34,7 +34,7 @@ import numpy as np
 
 from warpskill.contract.actions import check_action
 from warpskill.contract.npz import read_npz, save_npz_atomic
-from warpskill.contract.reconstruction import Reconstruction
+from warpskill.contract.reconstruction import Reconstruction, SceneCounts
 
 __all__ = ["Layout", "LayoutError", "Skill", "SkillError", "heading", "overlap_depth", "skill_from"]
 
@@ -186,7 +186,7 @@ def overlap_depth(pos_a, rot_a, size_a, pos_b, rot_b, size_b) -> float:
 
 
 @dataclasses.dataclass
-class Skill:
+class Skill(SceneCounts):
     """What a demonstration teaches, relative to the objects (keys and shapes: :data:`FIELD_SHAPES`).
 
     Build one with :func:`skill_from`; :meth:`apply` carries it to a :class:`Layout`.
@@ -223,16 +223,6 @@ class Skill:
     def __post_init__(self) -> None:
         _check_fields({name: getattr(self, name) for name in FIELD_SHAPES})
         self.action = check_action(str(self.action))
-
-    @property
-    def num_frames(self) -> int:
-        """N, the number of frames."""
-        return self.t.shape[0]
-
-    @property
-    def num_static(self) -> int:
-        """K, the number of static boxes the skill expects."""
-        return self.static_pos.shape[0]
 
     @property
     def layout(self) -> Layout:
