@@ -51,13 +51,14 @@ def test_bench_something_else_robot_columns(tmp_path, capsys):
 
 
 def test_bench_something_else_robot_reports_a_missing_plan_in_one_line(tmp_path, capsys, monkeypatch):
+    from warpskill.bench import end_to_end
     from warpskill.bench.end_to_end import RobotOutcome, robot_rows
     from warpskill.bench.something_else import bench_something_else
 
     def no_plan(recon, **kwargs):
         raise robot.PlanError("frame 15: no feasible grasp:\n  the cuboid is out of reach")
 
-    monkeypatch.setattr(robot, "retarget", no_plan)
+    monkeypatch.setattr(end_to_end, "retarget", no_plan)  # the planner the benchmark calls
     (tmp_path / VIDEO).mkdir()
     truth("put_next_to", 0).save(tmp_path / VIDEO / "reconstruction.npz")
     result = bench_something_else(*(assets.path(name) for name in EXAMPLE), out=tmp_path, robot=True,
