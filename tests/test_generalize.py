@@ -93,3 +93,19 @@ def test_generalize_two_layouts(capsys):
     assert (misses == 0) == (not result["misses"])
     out = capsys.readouterr().out
     assert "| planned" in out and "| robust" in out
+
+
+def test_a_skill_no_layout_fits_counts_as_unplanned_and_says_why(capsys):
+    pytest.importorskip("mujoco")
+    from warpskill.bench.generalize import bench_generalize
+
+    recon = truth("put_behind")
+    # The static box where the object ends: the demonstrated path runs into it, so every
+    # layout is refused, and the benchmark counts the skill's layouts as misses.
+    recon.static_pos[0, :2] = recon.object_pos[-1, :2]
+    result = bench_generalize({"into-the-box": recon}, layouts=2, engines=("mujoco",), robust=False)
+    assert result["rows"]["planned"] == [("put_behind", False)] * 2
+    assert result["rows"]["replay mujoco"] == [("put_behind", False)] * 2
+    [miss] = result["misses"]
+    assert miss.startswith("into-the-box: every layout: ")
+    assert "into-the-box: no layout: " in capsys.readouterr().out

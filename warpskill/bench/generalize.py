@@ -56,6 +56,13 @@ def _case(skill, layout, engines: Sequence[str], device: str, robust: bool) -> t
     return verdicts, reasons
 
 
+def _count(rows: dict, action: str, verdicts: dict[str, bool], robust: bool) -> None:
+    """Add one layout's verdicts to the table's rows (the robust row only where computed)."""
+    for row, ok in verdicts.items():
+        if row != "robust" or robust:
+            rows.setdefault(row, []).append((action, ok))
+
+
 def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
                      engines: Sequence[str] = ("mujoco",), seed: int = 0, device: str = "cpu",
                      robust: bool = True) -> dict:
@@ -80,15 +87,21 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
     rows: dict[str, list[tuple[str, bool]]] = {}
     misses = []
     for i, (name, recon) in enumerate(recons.items()):
-        skill = skill_from(recon)
-        for k, layout in enumerate(islice(random_layouts(skill, seed=seed + i), layouts)):
-            verdicts, reasons = _case(skill, layout, engines, device, robust)
-            for row, ok in verdicts.items():
-                if row != "robust" or robust:
-                    rows.setdefault(row, []).append((skill.action, ok))
-            misses += [f"{name} layout {k} ({layout.describe()}): {reason}" for reason in reasons]
-            print(f"{name} layout {k}: " + ", ".join(f"{row} {'yes' if ok else 'no'}" for row, ok in verdicts.items()),
-                  flush=True)
+        skill, done = skill_from(recon), 0
+        try:
+            for k, layout in enumerate(islice(random_layouts(skill, seed=seed + i), layouts)):
+                verdicts, reasons = _case(skill, layout, engines, device, robust)
+                done += 1
+                _count(rows, skill.action, verdicts, robust)
+                misses += [f"{name} layout {k} ({layout.describe()}): {reason}" for reason in reasons]
+                print(f"{name} layout {k}: " + ", ".join(f"{row} {'yes' if ok else 'no'}"
+                                                         for row, ok in verdicts.items()), flush=True)
+        except LayoutError as error:  # no layout fits this skill (e.g. its path runs into the static box)
+            unplanned = {"planned": False, **{f"replay {engine}": False for engine in engines}, "robust": False}
+            for _ in range(layouts - done):
+                _count(rows, skill.action, unplanned, robust)
+            misses.append(f"{name}: every layout: {error}")
+            print(f"{name}: no layout: {error}", flush=True)
     print()
     print(success_table(rows))
     if misses:
