@@ -34,6 +34,7 @@ import numpy as np
 
 from warpskill.contract.actions import check_action
 from warpskill.contract.npz import read_npz, save_npz_atomic
+from warpskill.contract.reconstruction import FIELD_SHAPES as RECONSTRUCTION_SHAPES
 from warpskill.contract.reconstruction import Reconstruction, SceneCounts
 
 __all__ = ["Layout", "LayoutError", "Skill", "SkillError", "heading", "overlap_depth", "skill_from"]
@@ -64,14 +65,9 @@ FIELD_SHAPES: dict[str, tuple[str | int, ...]] = {
     "hand_in_object_rot": ("N", 3, 3),
     "release_offset": (3,),
     "release_gap": (),
-    "static_pos": ("K", 3),
-    "static_rot": ("K", 3, 3),
-    "static_size": ("K", 3),
-    "camera_K": (3, 3),
-    "camera_elevation": (),
-    "camera_height": (),
-    "image_size": (2,),
-    "loss": (),
+    # the scene around the motion, as the reconstruction holds it
+    **{key: RECONSTRUCTION_SHAPES[key] for key in ("static_pos", "static_rot", "static_size", "camera_K",
+                                                  "camera_elevation", "camera_height", "image_size", "loss")},
 }
 """Every key of ``skill.npz`` and its shape; ``N`` frames and ``K`` static boxes."""
 
