@@ -93,3 +93,25 @@ def test_robot_step_agrees_across_engines_and_keeps_the_files(tmp_path):
     np.testing.assert_allclose(newton.reconstruction.object_pos, outcome.replays["newton"].reconstruction.object_pos)
     summary = agreement([outcome, None])
     assert summary["cases"] == 1 and summary["agree"] == 1 and summary["disagree"] == []
+
+
+def test_robot_step_replays_a_successful_plan_under_every_perturbation():
+    pytest.importorskip("mujoco")
+    from warpskill.bench.end_to_end import robot_rows, robot_step
+    from warpskill.export.perturbation import PERTURBATIONS
+
+    outcome = robot_step(truth("push_left_to_right", 2), engines=("mujoco",), robust=True)
+    assert outcome.replayed
+    assert list(outcome.perturbed) == [p.name for p in PERTURBATIONS]
+    assert outcome.robust == all(outcome.perturbed.values())
+    assert outcome.broken_by() == [name for name, ok in outcome.perturbed.items() if not ok]
+    rows = robot_rows([("push_left_to_right", True, outcome)], ("mujoco",), robust=True)
+    assert rows["robust"] == [("push_left_to_right", outcome.robust)]
+    assert "robust" not in robot_rows([("push_left_to_right", True, outcome)], ("mujoco",))
+
+
+def test_robust_replays_need_mujoco():
+    from warpskill.bench.end_to_end import robot_step
+
+    with pytest.raises(ValueError, match="robust replays need the mujoco engine"):
+        robot_step(truth("push_left_to_right", 2), engines=("newton",), robust=True)

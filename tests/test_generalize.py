@@ -109,3 +109,10 @@ def test_a_skill_no_layout_fits_counts_as_unplanned_and_says_why(capsys):
     [miss] = result["misses"]
     assert miss.startswith("into-the-box: every layout: ")
     assert "into-the-box: no layout: " in capsys.readouterr().out
+
+
+def test_generalize_refuses_the_robust_row_without_mujoco():
+    from warpskill.bench.generalize import bench_generalize
+
+    with pytest.raises(ValueError, match="robust row needs the mujoco engine"):
+        bench_generalize({"pick_up": truth("pick_up")}, layouts=1, engines=("newton",))

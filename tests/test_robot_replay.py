@@ -117,6 +117,7 @@ def test_bench_robot_prints_the_table_and_keeps_the_plans(tmp_path, capsys):
     rows = {line.split("|")[1].strip(): line for line in printed.splitlines() if line.startswith("| ")}
     # push_left_to_right 0 plans and succeeds; put_onto 0's cuboid is too wide: a substitute is put onto the box.
     assert "2/2" in rows["planned"] and "2/2" in rows["replay mujoco"]
+    assert "robust" in rows  # each success replayed again under the perturbations
     assert "put_onto" in printed and "substituted" in printed
     assert (tmp_path / "push_left_to_right_0" / "plan.npz").is_file()
     video = tmp_path / "push_left_to_right_0"

@@ -4,7 +4,9 @@
 ``warpskill bench something-else --robot`` (real videos' reconstructions) do per case:
 retarget the reconstruction (:func:`warpskill.robot.retarget`), replay the plan in each
 engine (:func:`warpskill.robot.replay`) and judge the replayed object by the paper's
-criteria; with a folder it keeps ``plan.npz``, ``replay_<engine>.npz`` and (``video``)
+criteria, optionally once more under each perturbation a real robot meets (the *robust*
+verdict); ``warpskill bench generalize`` does the same for a skill in a new layout. With a
+folder it keeps ``plan.npz``, ``replay_<engine>.npz`` and (``video``)
 the replay video of the first engine's scene (``replay.mp4``, or ``replay.png`` without an
 offscreen renderer). :func:`robot_rows`, :func:`agreement` and :func:`timing_lines`
 summarise a benchmark's outcomes the same way for both.
@@ -21,6 +23,8 @@ from typing import Sequence
 import numpy as np
 
 from warpskill.contract.results_folder import ResultsFolder
+from warpskill.contract.skill import LayoutError
+from warpskill.export.perturbation import PERTURBATIONS
 from warpskill.robot import PlanError, prefer_headless_gl, record, replay, retarget
 
 ENGINES: tuple[str, ...] = ("mujoco", "newton")
@@ -42,6 +46,8 @@ class RobotOutcome:
         video: the replay video (or plot) written, else None.
         cpu_seconds: engine -> CPU time [s] of this process during the replay (the replay's
             ``replay_time`` is wall-clock time, which other work on the machine stretches).
+        perturbed: perturbation name -> whether the MuJoCo replay under it succeeded
+            (:data:`~warpskill.export.perturbation.PERTURBATIONS`); empty when not tried.
     """
 
     plan: object | None = None
@@ -49,6 +55,7 @@ class RobotOutcome:
     replays: dict = dataclasses.field(default_factory=dict)
     video: Path | None = None
     cpu_seconds: dict = dataclasses.field(default_factory=dict)
+    perturbed: dict = dataclasses.field(default_factory=dict)
 
     @property
     def planned(self) -> bool:
@@ -63,6 +70,15 @@ class RobotOutcome:
     def replayed(self) -> bool:
         """Whether a plan was found and its replay achieved the action in every engine run."""
         return self.planned and bool(self.replays) and all(result.success for result in self.replays.values())
+
+    @property
+    def robust(self) -> bool:
+        """Whether the plan succeeded in every engine run and in MuJoCo under every perturbation tried."""
+        return self.replayed and bool(self.perturbed) and all(self.perturbed.values())
+
+    def broken_by(self) -> list[str]:
+        """Names of the perturbations under which the MuJoCo replay failed."""
+        return [name for name, ok in self.perturbed.items() if not ok]
 
     def agree(self) -> bool:
         """Whether every engine run gives the same verdict."""
@@ -93,25 +109,34 @@ class RobotOutcome:
 
 
 def robot_step(recon, folder: Path | None = None, *, engines: Sequence[str] = ENGINES, device: str = "cpu",
-               video: bool = False) -> RobotOutcome:
+               video: bool = False, robust: bool = False, skill=None, layout=None) -> RobotOutcome:
     """Retarget ``recon`` to the Panda and replay the plan in each of ``engines``.
 
     Args:
-        recon: the reconstruction (its ``action`` is the one judged).
+        recon: the reconstruction (its ``action`` is the one judged); with ``layout``, the
+            layout's scene (``skill.apply(layout)``) that the replays are judged on.
         folder: where to keep ``plan.npz``, ``replay_<engine>.npz`` and the video (None: nothing written).
         engines: replay engines, in order (``mujoco``, ``newton``).
         device: Warp device of the Newton replay.
         video: also write the replay video into ``folder`` (MuJoCo's rendering of the plan).
+        robust: where the plan succeeds in every engine, replay it in MuJoCo once more under
+            each of :data:`~warpskill.export.perturbation.PERTURBATIONS` (needs ``mujoco``
+            among ``engines``: the perturbations edit its model).
+        skill, layout: plan ``skill`` in ``layout`` (:func:`warpskill.robot.retarget`)
+            instead of ``recon`` as demonstrated.
 
     Returns:
         The :class:`RobotOutcome`; a plan that cannot be made is an outcome with its reason
-        (:class:`~warpskill.robot.PlanError`), not an exception.
+        (:class:`~warpskill.robot.PlanError`, :class:`~warpskill.contract.skill.LayoutError`),
+        not an exception.
     """
 
+    if robust and "mujoco" not in engines:
+        raise ValueError("robust replays need the mujoco engine: the perturbations edit its model")
     prefer_headless_gl()  # before MuJoCo is first imported (a no-op afterwards)
     try:
-        plan = retarget(recon)
-    except PlanError as error:
+        plan = retarget(recon if skill is None else skill, layout=layout)
+    except (PlanError, LayoutError) as error:
         return RobotOutcome(reason=one_line(error))
     outcome = RobotOutcome(plan=plan)
     if folder is not None:
@@ -124,30 +149,35 @@ def robot_step(recon, folder: Path | None = None, *, engines: Sequence[str] = EN
         outcome.replays[engine] = result
         if folder is not None:
             keeper.save(result, keeper.engine_replay(engine))
+    if robust and outcome.replayed:
+        outcome.perturbed = {p.name: replay(plan, recon, edit_model=p).success for p in PERTURBATIONS}
     if video and folder is not None and outcome.replays:
         outcome.video = record(plan, plan.scene(recon), next(iter(outcome.replays.values())), folder)
     return outcome
 
 
 def robot_rows(cases: Sequence[tuple[str, bool, RobotOutcome | None]], engines: Sequence[str], *,
-               reconstruction_row: str = "reconstruction") -> dict[str, list]:
+               reconstruction_row: str = "reconstruction", robust: bool = False) -> dict[str, list]:
     """The end-to-end success table's rows, as (action, ok) pairs per case.
 
     Rows: ``reconstruction_row`` (the reconstruction meets the criteria), ``planned``,
-    ``replay <engine>`` (the replayed object meets them) and ``end to end`` (the
-    reconstruction and the replay in every engine do).
+    ``replay <engine>`` (the replayed object meets them), ``robust`` (with ``robust``: the
+    replay succeeds in every engine and under every perturbation, :attr:`RobotOutcome.robust`)
+    and ``end to end`` (the reconstruction and the replay in every engine do).
 
     Args:
         cases: (action, reconstruction ok, outcome) per case; an outcome of None (no
             reconstruction, or the robot step not run) fails the robot rows.
     """
-    rows: dict[str, list] = {reconstruction_row: [], "planned": [],
-                             **{f"replay {engine}": [] for engine in engines}, "end to end": []}
+    rows: dict[str, list] = {reconstruction_row: [], "planned": [], **{f"replay {engine}": [] for engine in engines},
+                             **({"robust": []} if robust else {}), "end to end": []}
     for action, reconstructed, outcome in cases:
         rows[reconstruction_row].append((action, bool(reconstructed)))
         rows["planned"].append((action, outcome is not None and outcome.planned))
         for engine in engines:
             rows[f"replay {engine}"].append((action, outcome is not None and outcome.success(engine)))
+        if robust:
+            rows["robust"].append((action, outcome is not None and outcome.robust))
         rows["end to end"].append((action, bool(reconstructed) and outcome is not None and outcome.replayed))
     return rows
 

@@ -5,12 +5,14 @@ random layouts of :func:`warpskill.export.layouts.layouts` (the object anywhere 
 Panda's reachable table at any yaw; each static box at a random place and yaw there, apart
 from the object, with the object's whole path on the table), each planned
 (:func:`warpskill.robot.retarget` with the layout) and replayed in every engine, judged by
-the action's criteria on the layout's scene. A plan that succeeds in MuJoCo is replayed once
+the action's criteria on the layout's scene (:func:`~warpskill.bench.end_to_end.robot_step`,
+as ``bench robot`` does). A plan that succeeds in every engine is replayed in MuJoCo once
 more under each of :data:`~warpskill.export.perturbation.PERTURBATIONS` (mass x0.5 and x2,
 friction -+30 %, the object 1 cm and 5 deg off); it is *robust* when it succeeds under all.
 
-Prints, per action, planned / succeeded (per engine) / robust as a success table, and the
-reason of every miss (the plan's error, the failed checks, the perturbations that broke it).
+Prints, per action, planned / succeeded (per engine) / robust as a success table, how the
+engines agree, and the reason of every miss (the plan's error, the failed checks, the
+perturbations that broke it).
 """
 
 from __future__ import annotations
@@ -18,49 +20,35 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from itertools import islice
 
+from warpskill.bench.end_to_end import RobotOutcome, agreement_line, robot_step
 from warpskill.contract.evaluation import success_table
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.skill import LayoutError, skill_from
 from warpskill.export.layouts import layouts as random_layouts
-from warpskill.export.perturbation import PERTURBATIONS
-from warpskill.robot import PlanError, prefer_headless_gl, replay, retarget
 
-__all__ = ["bench_generalize", "robust_misses"]
+__all__ = ["bench_generalize"]
 
 
-def robust_misses(plan, recon) -> list[str]:
-    """Names of the perturbations under which the MuJoCo replay of ``plan`` fails (empty: robust)."""
-
-    return [p.name for p in PERTURBATIONS if not replay(plan, recon, edit_model=p).success]
-
-
-def _case(skill, layout, engines: Sequence[str], device: str, robust: bool) -> tuple[dict[str, bool], list[str]]:
-    """One layout: ``{"planned", "replay <engine>"..., "robust"}`` verdicts and the reasons of its misses."""
-
-    verdicts = {"planned": False, **{f"replay {engine}": False for engine in engines}, "robust": False}
-    recon = skill.apply(layout)
-    try:
-        plan = retarget(skill, layout=layout)
-    except (PlanError, LayoutError) as error:
-        return verdicts, [f"plan: {error}"]
-    verdicts["planned"], reasons = True, []
-    for engine in engines:
-        result = replay(plan, recon, engine, device=device)
-        verdicts[f"replay {engine}"] = result.success
-        if not result.success:
-            reasons.append(f"{engine} fails {', '.join(k for k, ok in result.evaluation.checks.items() if not ok)}")
-    if robust and verdicts.get("replay mujoco", False):
-        broken = robust_misses(plan, recon)
-        verdicts["robust"] = not broken
-        reasons += [f"not robust: fails under {', '.join(broken)}"] if broken else []
-    return verdicts, reasons
+def _verdicts(outcome: RobotOutcome, engines: Sequence[str], robust: bool) -> dict[str, bool]:
+    """One layout's ``{"planned", "replay <engine>"..., "robust"}`` verdicts (robust only where tried)."""
+    verdicts = {"planned": outcome.planned, **{f"replay {engine}": outcome.success(engine) for engine in engines}}
+    return {**verdicts, "robust": outcome.robust} if robust else verdicts
 
 
-def _count(rows: dict, action: str, verdicts: dict[str, bool], robust: bool) -> None:
-    """Add one layout's verdicts to the table's rows (the robust row only where computed)."""
+def _reasons(outcome: RobotOutcome, engines: Sequence[str]) -> list[str]:
+    """Why one layout missed: the plan's error, each engine's failed checks, the perturbations that broke it."""
+    if not outcome.planned:
+        return [f"plan: {outcome.reason}"]
+    reasons = [f"{engine} fails {', '.join(outcome.failed_checks(engine))}"
+               for engine in engines if not outcome.success(engine)]
+    broken = outcome.broken_by()
+    return reasons + ([f"not robust: fails under {', '.join(broken)}"] if broken else [])
+
+
+def _count(rows: dict, action: str, verdicts: dict[str, bool]) -> None:
+    """Add one layout's verdicts to the table's rows."""
     for row, ok in verdicts.items():
-        if row != "robust" or robust:
-            rows.setdefault(row, []).append((action, ok))
+        rows.setdefault(row, []).append((action, ok))
 
 
 def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
@@ -74,38 +62,48 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
         engines: replay engines (``mujoco``, ``newton``).
         seed: of the layouts (the i-th reconstruction draws from ``seed + i``).
         device: Warp device of Newton.
-        robust: also replay each MuJoCo success under the perturbations (``robust`` row;
-            needs ``mujoco`` among the engines).
+        robust: the ``robust`` row: a layout whose plan succeeds in every engine is replayed
+            in MuJoCo once more under each perturbation (needs ``mujoco`` among the engines).
 
     Returns:
-        ``{"rows": {row: [(action, ok)]}, "misses": [str]}``, rows ``planned``,
-        ``replay <engine>``, and ``robust`` when computed.
+        ``{"rows": {row: [(action, ok)]}, "misses": [str], "outcomes": [RobotOutcome]}``, rows
+        ``planned``, ``replay <engine>``, and ``robust`` when computed.
+
+    Raises:
+        ValueError: ``robust`` without the ``mujoco`` engine.
     """
 
-    prefer_headless_gl()
-    robust = robust and "mujoco" in engines
+    if robust and "mujoco" not in engines:
+        raise ValueError("the robust row needs the mujoco engine (the perturbations edit its model): "
+                         "add mujoco to the engines, or skip the row (--no-robust)")
     rows: dict[str, list[tuple[str, bool]]] = {}
-    misses = []
+    misses, outcomes = [], []
     for i, (name, recon) in enumerate(recons.items()):
         skill, done = skill_from(recon), 0
         try:
             for k, layout in enumerate(islice(random_layouts(skill, seed=seed + i), layouts)):
-                verdicts, reasons = _case(skill, layout, engines, device, robust)
+                outcome = robot_step(skill.apply(layout), engines=engines, device=device, robust=robust,
+                                     skill=skill, layout=layout)
+                outcomes.append(outcome)
+                verdicts = _verdicts(outcome, engines, robust)
                 done += 1
-                _count(rows, skill.action, verdicts, robust)
-                misses += [f"{name} layout {k} ({layout.describe()}): {reason}" for reason in reasons]
+                _count(rows, skill.action, verdicts)
+                misses += [f"{name} layout {k} ({layout.describe()}): {reason}" for reason in _reasons(outcome, engines)]
                 print(f"{name} layout {k}: " + ", ".join(f"{row} {'yes' if ok else 'no'}"
                                                          for row, ok in verdicts.items()), flush=True)
         except LayoutError as error:  # no layout fits this skill (e.g. its path runs into the static box)
-            unplanned = {"planned": False, **{f"replay {engine}": False for engine in engines}, "robust": False}
+            unplanned = _verdicts(RobotOutcome(reason=str(error)), engines, robust)
             for _ in range(layouts - done):
-                _count(rows, skill.action, unplanned, robust)
+                _count(rows, skill.action, unplanned)
             misses.append(f"{name}: every layout: {error}")
             print(f"{name}: no layout: {error}", flush=True)
     print()
     print(success_table(rows))
+    line = agreement_line(outcomes)
+    if line:
+        print(line)
     if misses:
         print("misses:")
         for line in misses:
             print(f"  {line}")
-    return {"rows": rows, "misses": misses}
+    return {"rows": rows, "misses": misses, "outcomes": outcomes}

@@ -4,8 +4,9 @@ For each action and seed: the reconstruction (the synthetic ground truth, or the
 output on the noisy demonstration), judged by :func:`warpskill.evaluate`, then the robot step
 shared with ``warpskill bench something-else --robot``
 (:func:`warpskill.bench.end_to_end.robot_step`): a placo plan and its replay in each engine,
-judged by the same criteria. Prints the success table (reconstruction, planned, replay per
-engine, end to end), the planning and replay times (wall and CPU), how the engines agree
+judged by the same criteria, and (robust) once more in MuJoCo under each perturbation a real
+robot meets. Prints the success table (reconstruction, planned, replay per engine, robust,
+end to end), the planning and replay times (wall and CPU), how the engines agree
 (same verdict, distance of the final object positions) and the reason of every failure.
 """
 
@@ -55,7 +56,7 @@ def synthetic_reconstruction(action: str, seed: int, source: str, options: Optim
 
 def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, source: str = "truth",
                 engines: Sequence[str] = ("mujoco",), actions: Sequence[str] | None = None, out: Path | None = None,
-                video: bool = False) -> dict:
+                video: bool = False, robust: bool = True) -> dict:
     """Plan and replay every action x seed; print the success table per engine and the timings.
 
     Each case goes through :func:`~warpskill.bench.end_to_end.robot_step`, as the videos of
@@ -72,13 +73,19 @@ def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, sourc
             optimised reconstructions found there are reused.
         video: also write ``OUT/<action>_<seed>/replay.mp4`` of each plan (MuJoCo; a plot
             without an offscreen renderer).
+        robust: the ``robust`` row: a plan that succeeds in every engine is replayed in
+            MuJoCo under each of :data:`~warpskill.export.perturbation.PERTURBATIONS` (needs
+            ``mujoco`` among the engines).
 
     Returns:
         ``{"rows": {row: [(action, ok)]}, "planning": [s], "replay": {engine: [s]}, "failures": [str],
         "outcomes": [(action, seed, RobotOutcome)], "agreement": dict}`` (rows: ``reconstruction``,
-        ``planned``, ``replay <engine>``, ``end to end``; agreement: :func:`~warpskill.bench.end_to_end.agreement`).
+        ``planned``, ``replay <engine>``, ``robust``, ``end to end``; agreement: :func:`~warpskill.bench.end_to_end.agreement`).
     """
 
+    if robust and "mujoco" not in engines:
+        raise ValueError("the robust row needs the mujoco engine (the perturbations edit its model): "
+                         "add mujoco to the engines, or skip the row (--no-robust)")
     prefer_headless_gl()
     options = options or OptimizeOptions()
     device = options.device or "cpu"
@@ -92,7 +99,7 @@ def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, sourc
                 folder.mkdir(parents=True, exist_ok=True)
             recon = synthetic_reconstruction(action, seed, source, options, folder=folder)
             reconstructed = evaluate(recon, action).success
-            outcome = robot_step(recon, folder, engines=engines, device=device, video=video)
+            outcome = robot_step(recon, folder, engines=engines, device=device, video=video, robust=robust)
             cases.append((action, reconstructed, outcome))
             outcomes.append((action, seed, outcome))
             if not outcome.planned:
@@ -101,9 +108,11 @@ def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, sourc
                 if outcome.planned and not outcome.success(engine):
                     failures.append(f"{action} seed {seed}: {engine} replay fails "
                                     f"{', '.join(outcome.failed_checks(engine))}")
+            if outcome.broken_by():
+                failures.append(f"{action} seed {seed}: not robust: fails under {', '.join(outcome.broken_by())}")
             print(f"{action:<22} seed {seed}: {outcome.summary()[:160]}", flush=True)
 
-    rows = robot_rows(cases, engines)
+    rows = robot_rows(cases, engines, robust=robust)
     print()
     print(f"reconstructions: {source}")
     print(success_table(rows))

@@ -51,6 +51,8 @@ def register(commands) -> None:
     robot.add_argument("--actions", nargs="*", help="a subset of the actions (default: all 9)")
     robot.add_argument("-o", "--out", type=Path, help="keep reconstructions and plans here (reused on a rerun)")
     robot.add_argument("--video", action="store_true", help="also write OUT/<case>/replay.mp4 (needs -o)")
+    robot.add_argument("--no-robust", dest="robust", action="store_false",
+                       help="skip the perturbed replays (the robust row)")
     add_optimize_options(robot)  # for --source optimised; --device is also Newton's
     robot.set_defaults(run=_bench_robot)
     generalize = bench.add_parser("generalize", help="each skill in random layouts: planned, succeeded, robust")
@@ -155,7 +157,7 @@ def _bench_robot(args) -> int:
         cannot.update({name: "--source truth optimises nothing" for name in ("iterations", "known", "settings")})
     options = optimize_options(args, cannot=cannot)
     bench_robot(options, seeds=args.seeds, source=args.source, engines=args.engines, actions=args.actions,
-                out=args.out, video=args.video)
+                out=args.out, video=args.video, robust=args.robust)
     return 0
 
 
