@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from warpskill.contract import Layout, LayoutError, Reconstruction, Skill, SkillError, evaluate, skill_from
-from warpskill.contract.skill import heading
+from warpskill.contract.skill import heading, overlap_depth
 from warpskill.synthetic import make_demonstration
 
 MOTION_KEYS = ("object_pos", "object_rot", "hand_pos", "hand_rot", "static_pos", "static_rot")
@@ -130,6 +130,43 @@ def test_put_behind_releases_behind_the_moved_static_box():
     np.testing.assert_allclose(carried.object_pos[0], recon.object_pos[0], atol=1e-12)  # the start stays
     np.testing.assert_allclose(carried.object_pos[k_off:, 2], recon.object_pos[k_off:, 2], atol=1e-12)
     assert evaluate(carried).success, evaluate(carried).checks
+
+
+def test_a_carried_object_is_lifted_over_a_box_in_its_way():
+    recon = truth("put_behind")
+    # A static box 20 cm tall: the demonstrated carry (bottom up to 17.8 cm) would run 2.2 cm into it.
+    tall = dataclasses.replace(recon, static_pos=recon.static_pos * (1, 1, 0) + (0, 0, 0.10),
+                               static_size=recon.static_size * (1, 1, 0) + (0, 0, 0.20))
+    carried = skill_from(tall).apply(skill_from(tall).layout)
+    depths = [overlap_depth(carried.object_pos[f], carried.object_rot[f], carried.object_size, carried.static_pos[0],
+                            carried.static_rot[0], carried.static_size[0]) for f in range(carried.num_frames)]
+    assert max(depths) == 0.0
+    lift = carried.object_pos[:, 2] - recon.object_pos[:, 2]
+    held = np.flatnonzero(recon.grasped > 0.5)
+    assert not lift[:held[0]].any() and not lift[held[-1] + 1:].any()  # resting frames stay
+    carry_top = (recon.object_pos[:, 2] - 0.5 * recon.object_size[2]).max()
+    assert lift.max() == pytest.approx(0.20 + 0.01 - carry_top, abs=1e-6)  # 1 cm above the box's top
+    np.testing.assert_allclose(carried.hand_pos - recon.hand_pos, carried.object_pos - recon.object_pos, atol=1e-9)
+    assert evaluate(carried).success, evaluate(carried).checks
+
+
+def test_a_release_inside_the_box_is_carried_as_touching_it():
+    recon = truth("put_next_to")
+    k_off = int(np.flatnonzero(recon.grasped > 0.5)[-1]) + 1
+    axis = int(np.argmax(np.abs(recon.object_pos[k_off, :2] - recon.static_pos[0, :2])))
+    toward = np.zeros(3)
+    toward[axis] = recon.object_pos[k_off, axis] - recon.static_pos[0, axis]
+    skill = skill_from(recon)
+    # The box moved toward the released object until they overlap by 2 cm at the release.
+    inside = dataclasses.replace(recon, static_pos=recon.static_pos + toward * (skill.release_gap + 0.02)
+                                 / abs(toward[axis]))
+    pressed = skill_from(inside)
+    assert pressed.release_gap == pytest.approx(-0.02)
+    carried = pressed.apply(pressed.layout)
+    extents = [0.5 * float(np.abs(rot[axis]) @ size) for rot, size in
+               ((carried.static_rot[0], carried.static_size[0]), (carried.object_rot[k_off], carried.object_size))]
+    gap = abs(carried.object_pos[k_off, axis] - carried.static_pos[0, axis]) - sum(extents)
+    assert gap == pytest.approx(0.0, abs=1e-9)
 
 
 def test_resized_object_keeps_its_bottom():

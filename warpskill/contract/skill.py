@@ -15,7 +15,12 @@ demonstrated layout, and the motion relative to the objects:
   in with that face;
 - for ``put_*``, the release relative to the (first) static box as seen from the camera:
   the object centre's offset from the box centre in world axes, along the dominant
-  horizontal world axis as the gap between their world extents.
+  horizontal world axis as the gap between their world extents (at least touching: a
+  reconstruction that ends the object a little inside the box meant it beside the box).
+
+A carried object (``pick_up``, ``put_*``) whose path in a new layout would run into a
+static box is lifted over it, as a robot would carry it: a reconstruction's path may graze
+a box's edge by a few centimetres.
 
 A :class:`Layout` places the object's start and each static box on the table (x, y, yaw)
 in the reconstruction's world frame; :meth:`Skill.apply` makes the reconstruction of the
@@ -41,6 +46,15 @@ __all__ = ["Layout", "LayoutError", "Skill", "SkillError", "heading", "overlap_d
 
 OVERLAP_TOLERANCE = 0.01
 """[m] boxes that interpenetrate deeper than this make a layout impossible."""
+
+CARRY_CLEARANCE = 0.01
+"""[m] a carried object whose path would run into a static box passes this far above its top."""
+
+GRAZE = 0.005
+"""[m] a carried object touching a static box less deeply than this (set down on it) is not lifted."""
+
+LIFT_RATE = 0.2
+"""[m/s] how fast a carried object is raised to that clearance and lowered from it."""
 
 MIN_TRAVEL = 0.01
 """[m] a pull or push moving the object less than this has no world direction to keep."""
@@ -292,7 +306,8 @@ class Skill(SceneCounts):
 
         The demonstrated motion from the new start, resting as deep as before (a resized
         object keeps its bottom's heights); a ``put_*`` path bends, with the progress along
-        it, to end at the release relative to the static box.
+        it, to end at the release relative to the static box; a carried object is lifted
+        over the static boxes in its way (:func:`_carry_lift`).
         """
         x, y, yaw = layout.object
         start_rot = _rot_z(yaw - heading(self.object_start_rot)) @ self.object_start_rot
@@ -305,6 +320,8 @@ class Skill(SceneCounts):
         if self.action.startswith("put_") and k_off is not None and self.num_static:
             target = self._release_point(pos[k_off], rot[k_off], size, static_pos[0], static_rot[0])
             pos += _progress(self.object_motion_pos, k_on, k_off)[:, None] * (target - pos[k_off])
+        if not _world_directed(self.action):
+            pos[:, 2] += _carry_lift(pos, rot, size, (static_pos, static_rot, self.static_size), k_on, k_off, self.fps)
         return pos, rot
 
     def _release_point(self, where: np.ndarray, rot: np.ndarray, size: np.ndarray, static_pos: np.ndarray,
@@ -316,7 +333,7 @@ class Skill(SceneCounts):
             direction = np.eye(3)[axis]
             reach = (_support_extent(static_rot, self.static_size[0], direction)
                      + _support_extent(rot, size, direction))
-            offset[axis] = math.copysign(reach + self.release_gap, offset[axis])
+            offset[axis] = math.copysign(reach + max(self.release_gap, 0.0), offset[axis])
         target = static_pos + offset
         target[2] = where[2]
         return target
@@ -413,6 +430,28 @@ def _progress(motion_pos: np.ndarray, k_on: int, k_off: int) -> np.ndarray:
     progress[k_on + 1:k_off + 1] = np.cumsum(steps) / steps.sum()
     progress[k_off:] = 1.0
     return progress
+
+
+def _carry_lift(pos: np.ndarray, rot: np.ndarray, size: np.ndarray, statics: tuple[np.ndarray, ...], k_on: int,
+                k_off: int | None, fps: float) -> np.ndarray:
+    """(N,) [m] how far to raise the object (centres ``pos`` (N, 3), rotations ``rot`` (N, 3, 3))
+    in its held frames so that it passes :data:`CARRY_CLEARANCE` above each static box
+    (``statics``: (K, 3) centres, (K, 3, 3) rotations, (K, 3) sizes) it would run into deeper
+    than :data:`GRAZE`; raised and lowered at :data:`LIFT_RATE`, 0 outside the held frames."""
+    end = len(pos) if k_off is None else k_off
+    up = np.array([0.0, 0.0, 1.0])
+    need = np.zeros(len(pos))
+    for f in range(k_on, end):
+        for static in zip(*statics):
+            if overlap_depth(pos[f], rot[f], size, *static) > GRAZE:
+                top = static[0][2] + _support_extent(static[1], static[2], up)
+                need[f] = max(need[f], top + CARRY_CLEARANCE - (pos[f, 2] - _support_extent(rot[f], size, up)))
+    if not need.any():
+        return need
+    frames = np.arange(len(pos))
+    lift = np.max(need[None, :] - LIFT_RATE / fps * np.abs(frames[:, None] - frames[None, :]), axis=1).clip(min=0.0)
+    lift[:k_on] = lift[end:] = 0.0
+    return lift
 
 
 def _check_overlaps(recon: Reconstruction) -> None:
