@@ -11,7 +11,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from warpskill.export.lerobot import CODEBASE_VERSION, LeRobotError, LeRobotWriter
+from warpskill.export.lerobot import CODEBASE_VERSION, LeRobotError, LeRobotWriter, feature_stats
 from warpskill.robot.video import prefer_headless_gl
 
 prefer_headless_gl()  # before MuJoCo is first imported: its GL backend is chosen then
@@ -90,6 +90,22 @@ def test_writer_round_trip(tmp_path):
     assert stats["observation.state"]["count"] == [sum(lengths)]
     assert info["features"]["observation.state"] == {"dtype": "float32", "shape": [3], "names": NAMES}
     assert info["features"][CAMERA]["shape"] == [32, 48, 3]
+
+
+def test_camera_stats_are_those_of_every_pixel(tmp_path):
+    rng = np.random.default_rng(5)
+    frames = rng.integers(0, 256, (7, 16, 24, 3), dtype=np.uint8)
+    frames[..., 1] = frames[..., 1] // 9 + 40  # a narrow channel: quantiles between few levels
+    frames[..., 2] = np.where(frames[..., 2] > 200, 255, 0)  # two levels
+    state = rng.normal(size=(7, 3))
+    with LeRobotWriter(tmp_path / "dataset", fps=10, vectors={"observation.state": NAMES, "action": NAMES},
+                       cameras={CAMERA: (16, 24)}) as writer:
+        writer.add_episode({"observation.state": state, "action": state}, {CAMERA: frames}, "stack it")
+    stats = json.loads((tmp_path / "dataset" / "meta/stats.json").read_text())[CAMERA]
+    expected = feature_stats(frames.reshape(-1, 3) / 255.0)
+    for key in ("min", "max", "mean", "std", "q01", "q10", "q50", "q90", "q99"):
+        np.testing.assert_allclose(np.ravel(stats[key]), expected[key], atol=1e-6, err_msg=key)
+    assert stats["count"] == [7]
 
 
 def test_writer_refuses_bad_episodes(tmp_path):
