@@ -65,6 +65,10 @@ def test_static_cut_by_frame_reaches_the_border_away_from_the_object():
     bottoms = [static_cut_by_frame(boxes, contact, np.random.default_rng(s), (H, W))[0][2, 0, 3] == H
                for s in range(20)]
     assert 0 < sum(bottoms) < 20
+    in_front = boxes.copy()
+    in_front[1, :, [1, 3]] = boxes[1, :, [1, 3]] + 10  # the object's bottom below the static's: in front of it
+    assert not any(static_cut_by_frame(in_front, contact, np.random.default_rng(s), (H, W))[0][2, 0, 3] == H
+                   for s in range(20))
 
 
 def test_hand_partly_seen_keeps_a_window_of_half_to_two_thirds_of_the_frames_around_the_action_phase():

@@ -160,7 +160,11 @@ def enters_view(boxes: np.ndarray, contact: np.ndarray, rng: np.random.Generator
 def static_cut_by_frame(boxes: np.ndarray, contact: np.ndarray, rng: np.random.Generator, image_size):
     """A large static object cut by the frame: the static box reaches the image border on the
     side away from the object (and, one time in two, the bottom border), as an annotator boxes
-    a shelf or a table top of which only the near part takes the object."""
+    a shelf or a table top of which only the near part takes the object.
+
+    Never the bottom border where the object ends in front of the static (its last box's
+    bottom below the static's): a static object reaching past the view's bottom leaves no
+    ground in front of it where the object could be seen standing."""
     boxes = boxes.copy()
     if len(boxes) < 3:
         return boxes, contact
@@ -173,7 +177,8 @@ def static_cut_by_frame(boxes: np.ndarray, contact: np.ndarray, rng: np.random.G
         static[:, 0] = np.where(np.isnan(static[:, 0]), np.nan, 0.0)
     else:
         static[:, 2] = np.where(np.isnan(static[:, 2]), np.nan, float(W))
-    if rng.random() < 0.5:
+    in_front = len(seen) > 0 and obj[seen[-1], 3] > np.nanmedian(static[:, 3])
+    if rng.random() < 0.5 and not in_front:
         static[:, 3] = np.where(np.isnan(static[:, 3]), np.nan, float(H))
     return boxes, contact
 
