@@ -100,9 +100,9 @@ def test_a_skill_no_layout_fits_counts_as_unplanned_and_says_why(capsys):
     from warpskill.bench.generalize import bench_generalize
 
     recon = truth("put_behind")
-    # The static box where the object ends: the demonstrated path runs into it, so every
+    # A static box 2 m across: it covers the object wherever a layout puts them, so every
     # layout is refused, and the benchmark counts the skill's layouts as misses.
-    recon.static_pos[0, :2] = recon.object_pos[-1, :2]
+    recon.static_size[0, :2] = 2.0
     result = bench_generalize({"into-the-box": recon}, layouts=2, engines=("mujoco",), robust=False)
     assert result["rows"]["planned"] == [("put_behind", False)] * 2
     assert result["rows"]["replay mujoco"] == [("put_behind", False)] * 2
