@@ -105,6 +105,8 @@ def test_robot_step_replays_a_successful_plan_under_every_perturbation():
     assert list(outcome.perturbed) == [p.name for p in PERTURBATIONS]
     assert outcome.robust == all(outcome.perturbed.values())
     assert outcome.broken_by() == [name for name, ok in outcome.perturbed.items() if not ok]
+    broken = outcome.broken_by()
+    assert outcome.misses() == ([f"not robust: fails under {', '.join(broken)}"] if broken else [])
     rows = robot_rows([("push_left_to_right", True, outcome)], ("mujoco",), robust=True)
     assert rows["robust"] == [("push_left_to_right", outcome.robust)]
     assert "robust" not in robot_rows([("push_left_to_right", True, outcome)], ("mujoco",))

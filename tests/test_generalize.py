@@ -114,5 +114,5 @@ def test_a_skill_no_layout_fits_counts_as_unplanned_and_says_why(capsys):
 def test_generalize_refuses_the_robust_row_without_mujoco():
     from warpskill.bench.generalize import bench_generalize
 
-    with pytest.raises(ValueError, match="robust row needs the mujoco engine"):
+    with pytest.raises(ValueError, match="robust replays need the mujoco engine"):
         bench_generalize({"pick_up": truth("pick_up")}, layouts=1, engines=("newton",))

@@ -80,6 +80,16 @@ class RobotOutcome:
         """Names of the perturbations under which the MuJoCo replay failed."""
         return [name for name, ok in self.perturbed.items() if not ok]
 
+    def misses(self) -> list[str]:
+        """Why the case missed, one line each: the plan's error, each engine's failed checks,
+        the perturbations that broke it (empty: it succeeded everywhere it was tried)."""
+        if not self.planned:
+            return [f"plan: {self.reason}"]
+        lines = [f"{engine} replay fails {', '.join(self.failed_checks(engine))}"
+                 for engine, result in self.replays.items() if not result.success]
+        broken = self.broken_by()
+        return lines + ([f"not robust: fails under {', '.join(broken)}"] if broken else [])
+
     def agree(self) -> bool:
         """Whether every engine run gives the same verdict."""
         return len({result.success for result in self.replays.values()}) <= 1
@@ -108,6 +118,13 @@ class RobotOutcome:
         return (f"planned {plan.planning_time:4.1f} s ({plan.grasp_name}{where}{resized}); " + "; ".join(verdicts))
 
 
+def check_robust_engines(engines: Sequence[str]) -> None:
+    """Refuse robust replays without MuJoCo (ValueError): the perturbations edit its model."""
+    if "mujoco" not in engines:
+        raise ValueError("robust replays need the mujoco engine (the perturbations edit its model): "
+                         "add mujoco to the engines, or skip the robust row (--no-robust)")
+
+
 def robot_step(recon, folder: Path | None = None, *, engines: Sequence[str] = ENGINES, device: str = "cpu",
                video: bool = False, robust: bool = False, skill=None, layout=None) -> RobotOutcome:
     """Retarget ``recon`` to the Panda and replay the plan in each of ``engines``.
@@ -131,8 +148,8 @@ def robot_step(recon, folder: Path | None = None, *, engines: Sequence[str] = EN
         not an exception.
     """
 
-    if robust and "mujoco" not in engines:
-        raise ValueError("robust replays need the mujoco engine: the perturbations edit its model")
+    if robust:
+        check_robust_engines(engines)
     prefer_headless_gl()  # before MuJoCo is first imported (a no-op afterwards)
     try:
         plan = retarget(recon if skill is None else skill, layout=layout)

@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from itertools import islice
 
-from warpskill.bench.end_to_end import RobotOutcome, agreement_line, robot_step
+from warpskill.bench.end_to_end import RobotOutcome, agreement_line, check_robust_engines, robot_step
 from warpskill.contract.evaluation import success_table
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.skill import LayoutError, skill_from
@@ -33,16 +33,6 @@ def _verdicts(outcome: RobotOutcome, engines: Sequence[str], robust: bool) -> di
     """One layout's ``{"planned", "replay <engine>"..., "robust"}`` verdicts (robust only where tried)."""
     verdicts = {"planned": outcome.planned, **{f"replay {engine}": outcome.success(engine) for engine in engines}}
     return {**verdicts, "robust": outcome.robust} if robust else verdicts
-
-
-def _reasons(outcome: RobotOutcome, engines: Sequence[str]) -> list[str]:
-    """Why one layout missed: the plan's error, each engine's failed checks, the perturbations that broke it."""
-    if not outcome.planned:
-        return [f"plan: {outcome.reason}"]
-    reasons = [f"{engine} fails {', '.join(outcome.failed_checks(engine))}"
-               for engine in engines if not outcome.success(engine)]
-    broken = outcome.broken_by()
-    return reasons + ([f"not robust: fails under {', '.join(broken)}"] if broken else [])
 
 
 def _count(rows: dict, action: str, verdicts: dict[str, bool]) -> None:
@@ -73,9 +63,8 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
         ValueError: ``robust`` without the ``mujoco`` engine.
     """
 
-    if robust and "mujoco" not in engines:
-        raise ValueError("the robust row needs the mujoco engine (the perturbations edit its model): "
-                         "add mujoco to the engines, or skip the row (--no-robust)")
+    if robust:
+        check_robust_engines(engines)
     rows: dict[str, list[tuple[str, bool]]] = {}
     misses, outcomes = [], []
     for i, (name, recon) in enumerate(recons.items()):
@@ -88,7 +77,7 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
                 verdicts = _verdicts(outcome, engines, robust)
                 done += 1
                 _count(rows, skill.action, verdicts)
-                misses += [f"{name} layout {k} ({layout.describe()}): {reason}" for reason in _reasons(outcome, engines)]
+                misses += [f"{name} layout {k} ({layout.describe()}): {reason}" for reason in outcome.misses()]
                 print(f"{name} layout {k}: " + ", ".join(f"{row} {'yes' if ok else 'no'}"
                                                          for row, ok in verdicts.items()), flush=True)
         except LayoutError as error:  # no layout fits this skill (e.g. its path runs into the static box)

@@ -16,7 +16,14 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
-from warpskill.bench.end_to_end import agreement, agreement_line, robot_rows, robot_step, timing_lines
+from warpskill.bench.end_to_end import (
+    agreement,
+    agreement_line,
+    check_robust_engines,
+    robot_rows,
+    robot_step,
+    timing_lines,
+)
 from warpskill.contract.actions import ACTIONS
 from warpskill.contract.evaluation import evaluate, success_table
 from warpskill.contract.reconstruction import Reconstruction
@@ -83,9 +90,8 @@ def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, sourc
         ``planned``, ``replay <engine>``, ``robust``, ``end to end``; agreement: :func:`~warpskill.bench.end_to_end.agreement`).
     """
 
-    if robust and "mujoco" not in engines:
-        raise ValueError("the robust row needs the mujoco engine (the perturbations edit its model): "
-                         "add mujoco to the engines, or skip the row (--no-robust)")
+    if robust:
+        check_robust_engines(engines)
     prefer_headless_gl()
     options = options or OptimizeOptions()
     device = options.device or "cpu"
@@ -102,14 +108,7 @@ def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, sourc
             outcome = robot_step(recon, folder, engines=engines, device=device, video=video, robust=robust)
             cases.append((action, reconstructed, outcome))
             outcomes.append((action, seed, outcome))
-            if not outcome.planned:
-                failures.append(f"{action} seed {seed}: plan: {outcome.reason}")
-            for engine in engines:
-                if outcome.planned and not outcome.success(engine):
-                    failures.append(f"{action} seed {seed}: {engine} replay fails "
-                                    f"{', '.join(outcome.failed_checks(engine))}")
-            if outcome.broken_by():
-                failures.append(f"{action} seed {seed}: not robust: fails under {', '.join(outcome.broken_by())}")
+            failures += [f"{action} seed {seed}: {miss}" for miss in outcome.misses()]
             print(f"{action:<22} seed {seed}: {outcome.summary()[:160]}", flush=True)
 
     rows = robot_rows(cases, engines, robust=robust)

@@ -79,7 +79,8 @@ def _image_stats(frames: np.ndarray) -> dict[str, np.ndarray]:
         total = counts.sum()
         mean = float(levels @ counts) / total
         seen = np.flatnonzero(counts)
-        at_rank = lambda rank: float(np.searchsorted(np.cumsum(counts), rank, side="right"))  # noqa: E731
+        below = np.cumsum(counts)  # pixels at or below each level
+        at_rank = lambda rank: float(np.searchsorted(below, rank, side="right"))  # noqa: E731
         values = {"min": float(seen[0]), "max": float(seen[-1]), "mean": mean,
                   "std": float(np.sqrt(max(float(levels**2 @ counts) / total - mean**2, 0.0)))}
         for q in QUANTILES:
