@@ -50,6 +50,19 @@ def test_an_object_that_leaves_through_the_border_with_the_hand_is_in_doubt():
     assert not held_after_contact(vanish, CONTACT).any()
 
 
+def test_an_object_that_moves_on_after_the_hand_box_ends_was_carried():
+    # The hand's boxes stop with the signal; the object's box goes on rising: carried.
+    rising = _masks(lambda k: (0, 10, 18, 22) if k < 12 else None,
+                    lambda k: (10 - min(max(k - 11, 0), 6), 16 - min(max(k - 11, 0), 6), 15, 25))
+    assert held_after_contact(rising, CONTACT).tolist() == [False] * 12 + [True] * 8
+    # Standing still where the hand left it, even as its top comes out from under the hand: let go.
+    uncovered = _masks(lambda k: (0, 10, 18, 22) if k < 12 else None, lambda k: (10 if k < 12 else 7, 16, 15, 25))
+    assert not held_after_contact(uncovered, CONTACT).any()
+    # A pixel of jitter at the bottom is no motion.
+    jitter = _masks(lambda k: (0, 10, 18, 22) if k < 12 else None, lambda k: (10, 16 + k % 2, 15, 25))
+    assert not held_after_contact(jitter, CONTACT).any()
+
+
 @pytest.mark.slow
 def test_both_endings_go_through_the_physics_and_the_video_picks_one(monkeypatch):
     calls = []

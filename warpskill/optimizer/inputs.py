@@ -157,22 +157,37 @@ def carried_into_view(masks: np.ndarray, contact: np.ndarray) -> np.ndarray:
     return out
 
 
-def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: int = 2) -> np.ndarray:
+def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: int = 2,
+                       moved_share: float = 0.25, moved_px: float = 3.0) -> np.ndarray:
     """(N,) bool: frames after the contact signal's end in which the object may still be held.
 
     Annotators may end the action phase while the hand still holds the object: it is then
     seen in the air with the hand on it, or it leaves the view with the hand. These are
-    the frames from the last contact frame to the video's end when, in every one of them,
-    the object's box (the bounds of its mask) touches the hand's, or the object has left
-    the view: its mask is empty after it last touched the image border in contact with the
-    hand. Whether it is really held there is for the physics to decide (see
+    the frames from the last contact frame to the video's end when nothing after it says
+    the hand let go, and something says it did not:
+
+    - in a frame with a hand box, the object's box (the bounds of its mask) touches the
+      hand's: a box apart from the hand's says the hand let go;
+    - frames without a hand box are missing evidence, not a release (the hand may have
+      left the annotation, or the view, with the object in it), but the object must show
+      it was carried there: in at least ``min_frames`` of them its box's bottom row moved
+      since the contact's end (by more than ``moved_share`` of its larger side and
+      ``moved_px``), and objects do not move by themselves;
+    - an object that leaves the view after it last touched the image border in contact with
+      the hand (or with no hand box) left with the hand; one that vanishes in the middle of
+      the image was not.
+
+    Whether it is really held there is for the physics to decide (see
     :func:`warpskill.optimize`); elsewhere, and when the run does not reach the video's
-    end (the hand let go and left), nothing is returned.
+    end, nothing is returned.
 
     Args:
         masks: (N, 2 + K, h, w) masks in [0, 1]: hand, object, statics.
         contact: (N,) bool.
         min_frames: fewer such frames than this are ignored.
+        moved_share, moved_px: how far [share of the box's larger side, px] the object's
+            box must move in frames without a hand box to count as carried (both: a few
+            pixels of an annotator's jitter are no motion).
     """
     N = len(contact)
     out = np.zeros(N, dtype=bool)
@@ -181,7 +196,7 @@ def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: in
         return out
     h, w = masks.shape[-2:]
     hand, obj = _boxes(masks[:, 0] > 0.5), _boxes(masks[:, 1] > 0.5)
-    visible = ~np.isnan(obj[:, 0])
+    visible, hand_seen = ~np.isnan(obj[:, 0]), ~np.isnan(hand[:, 0])
     with np.errstate(invalid="ignore"):
         attached = ((hand[:, 0] <= obj[:, 2] + 1) & (obj[:, 0] <= hand[:, 2] + 1)
                     & (hand[:, 1] <= obj[:, 3] + 1) & (obj[:, 1] <= hand[:, 3] + 1))
@@ -193,17 +208,31 @@ def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: in
         if len(seen) == 0 or not at_border[seen[-1]]:
             return out
         gone = True
+    released_box = obj[seen[-1]] if len(seen) else None
+    unseen_hand, moves, carried = False, 0, False
     for k in range(end + 1, N):
         if visible[k]:
-            if not attached[k]:
+            if hand_seen[k] and not attached[k]:
                 return out
+            if not hand_seen[k]:
+                unseen_hand = True
+                moves += released_box is not None and _moved(released_box, obj[k], moved_share, moved_px)
             gone = False
         elif not gone:
-            if not (at_border[k - 1] and (attached[k - 1] or contact[k - 1])):
+            if not (at_border[k - 1] and (attached[k - 1] or contact[k - 1] or not hand_seen[k - 1])):
                 return out
+            carried |= not hand_seen[k - 1]  # it left the view: it moved
             gone = True
-    out[end + 1 :] = True
+    if carried or moves >= min_frames or not unseen_hand:
+        out[end + 1 :] = True
     return out
+
+
+def _moved(before: np.ndarray, after: np.ndarray, share: float, floor: float) -> bool:
+    """Whether box ``after`` (4,)'s bottom row differs from ``before``'s by more than ``share``
+    of ``before``'s larger side and ``floor`` [px]. The bottom row, because a hand that moves
+    away from a released object uncovers its top and sides, seldom its bottom."""
+    return bool(abs(after[3] - before[3]) > max(share * max(before[2] - before[0], before[3] - before[1]), floor))
 
 
 def rests_on_static(masks: np.ndarray, contact: np.ndarray, *, min_frames: int = 2) -> np.ndarray:
