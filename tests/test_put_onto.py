@@ -71,6 +71,19 @@ def test_an_object_cut_at_the_static_box_top_edge_stands_behind_it():
         assert not cut_by_static(_masks(object_box), CONTACT).any()
 
 
+def test_a_static_box_cut_by_the_bottom_border_measures_the_margin_by_the_object():
+    # The static's box runs from row 8 out of the view: its 32 rows are no height of the
+    # static. An object 10 rows tall standing 3 rows into it is on top (a tenth of 32 rows
+    # would call it cut at the edge); one whose bottom stops at the edge is behind.
+    cut_static = (8, H, 20, 40)
+    on_top = _masks((1, 11, 24, 36), cut_static)
+    assert rests_on_static(on_top, CONTACT).tolist() == [False] * 12 + [True] * 8
+    assert not cut_by_static(on_top, CONTACT).any()
+    behind = _masks((0, 8, 24, 36), cut_static)
+    assert cut_by_static(behind, CONTACT).tolist() == [False] * 12 + [True] * 8
+    assert not rests_on_static(behind, CONTACT).any()
+
+
 def test_the_behind_prior_pushes_the_object_past_the_static_box_back_only_in_its_frames():
     weights = LossWeights()
     scene = _one_box_scene(0.25, [0.1, 0.1, 0.1])  # on top: its centre 15 cm short of the back, its front 20

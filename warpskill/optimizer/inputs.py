@@ -245,7 +245,9 @@ def rests_on_static(masks: np.ndarray, contact: np.ndarray, *, min_frames: int =
     least half of the narrower one and its bottom row lies inside the static's box (below
     its top edge by a tenth of its height, above its bottom edge): behind the box, the
     object would be cut at the static's top edge (:func:`cut_by_static`); in front of it,
-    its bottom would be lower than the static's. Whether it is really on top is for the
+    its bottom would be lower than the static's. A static box cut by the image's bottom
+    border shows no height of the static (it only reaches out of the view): there the
+    object's box height stands in for it. Whether it is really on top is for the
     physics to decide (see :func:`warpskill.optimize`); when the evidence is absent,
     nothing is returned.
 
@@ -274,7 +276,8 @@ def cut_by_static(masks: np.ndarray, contact: np.ndarray, *, min_frames: int = 2
 def _after_release(masks: np.ndarray, contact: np.ndarray, min_frames: int, bottom_rule, share: float) -> np.ndarray:
     """The frames from the release to the end, if in at least ``share`` of them the object's
     box overlaps the static's across half the narrower one, its bottom lies above the
-    static's, and its bottom row meets ``bottom_rule(object bottom, static top, static height)`` [px]."""
+    static's, and its bottom row meets ``bottom_rule(object bottom, static top, static height)`` [px]
+    (the static's box height, or the object's where the static's box reaches the bottom border)."""
     N = len(contact)
     out = np.zeros(N, dtype=bool)
     on = np.flatnonzero(contact)
@@ -286,7 +289,8 @@ def _after_release(masks: np.ndarray, contact: np.ndarray, min_frames: int, bott
         return out
     overlap = np.minimum(obj[:, 2], static[:, 2]) - np.maximum(obj[:, 0], static[:, 0])
     narrower = np.minimum(obj[:, 2] - obj[:, 0], static[:, 2] - static[:, 0])
-    height = static[:, 3] - static[:, 1]
+    h = masks.shape[-2]
+    height = np.where(static[:, 3] >= h - 1, obj[:, 3] - obj[:, 1], static[:, 3] - static[:, 1])
     placed = ((overlap >= 0.5 * narrower) & bottom_rule(obj[:, 3], static[:, 1], height) & (obj[:, 3] < static[:, 3]))
     if placed.mean() >= share:
         out[after] = True
