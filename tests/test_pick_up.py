@@ -4,10 +4,13 @@ import importlib
 
 import numpy as np
 import pytest
+import torch
 
 from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.hypotheses import carried_start
 from warpskill.optimizer.inputs import held_after_contact
 from warpskill.optimizer.pipeline import optimize
+from warpskill.optimizer.scene import SceneTrajectories
 from warpskill.synthetic import make_demonstration
 
 optimize_module = importlib.import_module("warpskill.optimizer.pipeline")
@@ -61,6 +64,23 @@ def test_an_object_that_moves_on_after_the_hand_box_ends_was_carried():
     # A pixel of jitter at the bottom is no motion.
     jitter = _masks(lambda k: (0, 10, 18, 22) if k < 12 else None, lambda k: (10, 16 + k % 2, 15, 25))
     assert not held_after_contact(jitter, CONTACT).any()
+
+
+def test_the_held_ending_starts_with_the_hand_carrying_the_object_where_the_hand_is_unseen():
+    n = 6
+    object_pos = torch.tensor([[0.0, 0.5, 0.05]] * 3 + [[0.0, 0.4, 0.15], [0.0, 0.3, 0.2], [0.0, 0.25, 0.2]])
+    hand_pos = torch.tensor([[0.0, 0.5, 0.1]] * 3 + [[0.3, 0.6, 0.4]] * 3)  # stage (a)'s free hand wanders off
+    eye = torch.eye(3).expand(n, 3, 3)
+    start = SceneTrajectories(hand_pos, eye, object_pos, eye, torch.full((3,), 0.05), torch.zeros(0, 3),
+                              torch.zeros(0, 3, 3), torch.zeros(0, 3), torch.tensor(0.45), torch.tensor(0.5))
+    signal = np.arange(n) < 3
+    hand_seen = np.arange(n) < 4  # the hand's box ends one frame after the signal
+    carried = carried_start(start, signal, np.ones(n, bool), hand_seen)
+    offset = hand_pos[2] - object_pos[2]
+    assert torch.allclose(carried.hand_pos[4:], object_pos[4:] + offset)  # carried where unseen
+    assert torch.equal(carried.hand_pos[:4], hand_pos[:4])  # kept where seen or in the signal
+    assert torch.equal(carried.object_pos, object_pos)
+    assert carried_start(start, signal, signal, hand_seen) is start  # the variant as given: unchanged
 
 
 @pytest.mark.slow

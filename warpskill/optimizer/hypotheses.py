@@ -16,7 +16,7 @@ support best:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
@@ -189,12 +189,33 @@ def physics_hypotheses(evidence: Sequence[Evidence], candidates: Sequence[Candid
         variants = [signal] + ([signal | seen.held] if seen.held.any() else [])
         starts = [(candidates[winners[i]], None)] + [(c, c.support) for c in candidates
                                                      if c.demo == i and c.support is not None]
+        hand_seen = (seen.inputs.masks[:, 0] > 0.5).flatten(1).any(1).cpu().numpy()
         for candidate, support in starts:
             start = candidate.parameters.scene().detached()
             for variant in variants:
                 contact = torch.as_tensor(variant, dtype=torch.float32, device=device)
-                hypotheses.append(PhysicsHypothesis(i, start, variant, contact, support))
+                hypotheses.append(PhysicsHypothesis(i, carried_start(start, signal, variant, hand_seen), variant,
+                                                    contact, support))
     return hypotheses
+
+
+def carried_start(start: SceneTrajectories, signal: np.ndarray, variant: np.ndarray,
+                  hand_seen: np.ndarray) -> SceneTrajectories:
+    """``start`` with the hand carrying the object in the frames that the contact ``variant``
+    (N,) adds to ``signal`` (N,) and where the hand has no mask (``hand_seen``, (N,) bool).
+
+    Stage (a) leaves the hand free where it has no mask; a held object moves with the hand,
+    so there the hand keeps its offset from the object at the signal's last frame, and the
+    physics starts from a hand that carries the object where the masks show it.
+    """
+    added = np.flatnonzero(np.asarray(variant, bool) & ~np.asarray(signal, bool) & ~np.asarray(hand_seen, bool))
+    if len(added) == 0:
+        return start
+    end = int(np.flatnonzero(signal)[-1])
+    frames = torch.as_tensor(added, device=start.hand_pos.device)
+    hand_pos = start.hand_pos.clone()
+    hand_pos[frames] = start.object_pos[frames] + (start.hand_pos[end] - start.object_pos[end])
+    return replace(start, hand_pos=hand_pos)
 
 
 def unseen_before_contact(seen: Evidence, signal: np.ndarray) -> bool:
