@@ -7,12 +7,13 @@ import numpy as np
 import pytest
 import torch
 
+from warpskill.contract.demonstration import Demonstration
 from warpskill.engine.distances import support_height
 from warpskill.engine.records import Rollout
 from warpskill.engine.rotations import yaw_rotation
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.guess import initial_guess
-from warpskill.optimizer.hypotheses import best_simulation
+from warpskill.optimizer.hypotheses import best_simulation, read_evidence, stage_a_candidates
 from warpskill.optimizer.inputs import carried_into_view, cut_by_static, rests_on_static
 from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.pipeline import optimize
@@ -148,8 +149,30 @@ def test_both_placements_go_through_the_physics(monkeypatch):
     assert len(starts) == 2
     assert not torch.equal(starts[0].object_pos, starts[1].object_pos)
     starts.clear()
-    optimize(make_demonstration("put_behind", seed=0, input="boxes"), config=small, progress=False)
-    assert len(starts) == 1
+    optimize(make_demonstration("put_in_front_of", seed=0, input="boxes"), config=small, progress=False)
+    assert len(starts) == 1  # in front of the static box: nothing says it may stand on it
+
+
+def _box_demonstration(object_after, static_box, scale=4):
+    """A 20-frame box demonstration at ``scale`` times :data:`H` x :data:`W`: the hand above,
+    the object carried and released into ``object_after`` (r0, r1, c0, c1), a static box."""
+    masks = _masks(object_after, static_box)
+    big = masks.repeat(scale, axis=2).repeat(scale, axis=3).astype(bool)
+    return Demonstration.from_arrays(big[:, 0], big[:, 1], CONTACT, 12.0, static_mask=big[:, 2][None])
+
+
+def test_an_object_that_covers_a_narrower_static_box_top_edge_is_tried_on_it_too():
+    # Its bottom meets the static's top edge as an object's cut by the box does; it spans the
+    # box across, so the box's top edge may be hidden under it: both placements are tried.
+    cpu = torch.device("cpu")
+    for object_after, covering in (((12, 21, 22, 38), True), ((12, 21, 27, 33), False)):  # wider or narrower
+        seen = read_evidence(_box_demonstration(object_after, (20, 34, 24, 36)), {}, OptimizeConfig(), cpu)
+        assert not seen.resting.any() and bool(seen.behind is not None)
+        assert bool(seen.covering.any()) is covering
+        placements = [c.support for c in stage_a_candidates([seen], 0.45, cpu) if c.support is not None]
+        assert len(placements) == int(covering)
+        if covering:
+            assert placements[0].bool().tolist() == [False] * 12 + [True] * 8
 
 
 def _one_box_scene(object_z, object_size):

@@ -28,6 +28,7 @@ from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.guess import OBJECT_DEPTH_HYPOTHESES, initial_guess
 from warpskill.optimizer.inputs import (
     WorkingInputs,
+    covers_static_top,
     cut_by_static,
     held_after_contact,
     rests_on_static,
@@ -64,6 +65,8 @@ class Evidence:
             (:func:`~warpskill.optimizer.inputs.cut_by_static`); None when there are none.
         typical_edge: [m] the largest edge of the typical size of the object's noun where its
             size prior applies (``weights.object_noun_size`` on); None elsewhere.
+        covering: (N,) bool, the frames of ``behind`` where the object's box spans the
+            static's (:func:`~warpskill.optimizer.inputs.covers_static_top`).
     """
 
     demo: Demonstration
@@ -75,6 +78,15 @@ class Evidence:
     resting: np.ndarray
     behind: torch.Tensor | None
     typical_edge: float | None = None
+    covering: np.ndarray | None = None
+
+    @property
+    def placement(self) -> np.ndarray:
+        """(N,) bool, the frames where the object may stand on the static box's top: where
+        it may rest on it, else where it covers the box's top edge (``covering``)."""
+        if self.resting.any() or self.covering is None:
+            return self.resting
+        return self.covering
 
 
 def read_evidence(demo: Demonstration, known: dict[str, float], config: OptimizeConfig,
@@ -87,11 +99,13 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
                                        noun_size_known=typical is not None)
     typical_edge = float(typical.edges[-1]) if typical is not None and weights.object_noun_size > 0 else None
     held = held_after_contact(inputs.masks.cpu().numpy(), inputs.contact_signal)
-    rest = cut = np.zeros(demo.num_frames, dtype=bool)
+    rest = cut = covering = np.zeros(demo.num_frames, dtype=bool)
     if demo.num_static:
         full = demo.mask_stack(*demo.image_size)
         rest, cut = rests_on_static(full, inputs.contact_signal), cut_by_static(full, inputs.contact_signal)
-    return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut), typical_edge)
+        covering = covers_static_top(full, inputs.contact_signal)
+    return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut), typical_edge,
+                    covering=covering)
 
 
 @dataclass
@@ -117,7 +131,8 @@ def stage_a_candidates(evidence: Sequence[Evidence], typical_camera_height: floa
                        device: torch.device) -> list[Candidate]:
     """Every demonstration from each object-depth hypothesis, demonstration by demonstration.
 
-    "On the static" is tried only where the object may rest on the static box; a guess equal
+    "On the static" is tried only where the object may stand on the static box's top
+    (:attr:`Evidence.placement`), without the prior that puts it behind the box; a guess equal
     to an earlier one of the same demonstration (the object's box bottom stays on one row)
     is fitted once. The hand's tilt read off its foreshortening starts the hand only where
     the scale is free: with a known length it was a worse start.
@@ -127,16 +142,17 @@ def stage_a_candidates(evidence: Sequence[Evidence], typical_camera_height: floa
         given = seen.inputs
         for hypothesis in OBJECT_DEPTH_HYPOTHESES:
             on_static = hypothesis == "on the static"
-            if on_static and not seen.resting.any():
+            placed = seen.placement
+            if on_static and not placed.any():
                 continue
             guess = initial_guess(given.masks.cpu().numpy(), given.contact_signal, given.intrinsics,
-                                  seen.demo.num_static, object_depth=hypothesis, resting=seen.resting,
+                                  seen.demo.num_static, object_depth=hypothesis, resting=placed,
                                   hand_width=not given.hand_boxed, hand_tilt=not seen.known,
                                   carried=given.contact_signal | seen.held,
                                   typical_camera_height=typical_camera_height)
             if any(c.demo == i and guess.same_as(c.guess) for c in candidates):
                 continue
-            support = torch.as_tensor(seen.resting, dtype=torch.float32, device=device) if on_static else None
+            support = torch.as_tensor(placed, dtype=torch.float32, device=device) if on_static else None
             candidates.append(Candidate(i, guess, support, InitialParameters(guess, seen.known).to(device)))
     return candidates
 

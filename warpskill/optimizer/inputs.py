@@ -256,8 +256,8 @@ def rests_on_static(masks: np.ndarray, contact: np.ndarray, *, min_frames: int =
         contact: (N,) bool.
         min_frames: fewer frames after the release than this are ignored.
     """
-    return _after_release(masks, contact, min_frames, lambda bottom, top, height: bottom > top + 0.1 * height,
-                          share=0.8)
+    return _after_release(masks, contact, min_frames,
+                          lambda obj, static, height: obj[:, 3] > static[:, 1] + 0.1 * height, share=0.8)
 
 
 def cut_by_static(masks: np.ndarray, contact: np.ndarray, *, min_frames: int = 2) -> np.ndarray:
@@ -268,16 +268,37 @@ def cut_by_static(masks: np.ndarray, contact: np.ndarray, *, min_frames: int = 2
     hides the object's lower part, so the object stands behind it, not on it (on top, its
     bottom would show inside the static's box).
     """
-    return _after_release(masks, contact, min_frames,
-                          lambda bottom, top, height: (bottom >= top - 0.25 * height) & (bottom <= top + 0.1 * height),
-                          share=0.8)
+    return _after_release(masks, contact, min_frames, _at_top_edge, share=0.8)
 
 
-def _after_release(masks: np.ndarray, contact: np.ndarray, min_frames: int, bottom_rule, share: float) -> np.ndarray:
+def covers_static_top(masks: np.ndarray, contact: np.ndarray, *, min_frames: int = 2) -> np.ndarray:
+    """(N,) bool: the frames of :func:`cut_by_static` in which the object's box also spans the
+    static box across (to a tenth of the static's width on each side).
+
+    On a static box narrower than itself an object covers the box's top edge, and its box
+    meets the static's as that of an object behind the box does; on a wider one the top
+    edge would show beside it, above its bottom. So here, and only here, the object may
+    stand on the box as well as behind it: the physics tells them apart.
+    """
+    def rule(obj: np.ndarray, static: np.ndarray, height: np.ndarray) -> np.ndarray:
+        margin = 0.1 * (static[:, 2] - static[:, 0])
+        return _at_top_edge(obj, static, height) & (obj[:, 0] <= static[:, 0] + margin) & (obj[:, 2] >= static[:, 2] - margin)
+
+    return _after_release(masks, contact, min_frames, rule, share=0.8)
+
+
+def _at_top_edge(obj: np.ndarray, static: np.ndarray, height: np.ndarray) -> np.ndarray:
+    """Whether the object's boxes (n, 4) have their bottom row at the static's boxes' top edge:
+    from a quarter of the static's height ``height`` (n,) [px] above it to a tenth below it."""
+    return (obj[:, 3] >= static[:, 1] - 0.25 * height) & (obj[:, 3] <= static[:, 1] + 0.1 * height)
+
+
+def _after_release(masks: np.ndarray, contact: np.ndarray, min_frames: int, rule, share: float) -> np.ndarray:
     """The frames from the release to the end, if in at least ``share`` of them the object's
     box overlaps the static's across half the narrower one, its bottom lies above the
-    static's, and its bottom row meets ``bottom_rule(object bottom, static top, static height)`` [px]
-    (the static's box height, or the object's where the static's box reaches the bottom border)."""
+    static's, and ``rule(object boxes, static boxes, static height)`` holds (boxes (n, 4),
+    heights (n,) [px]: the static's box height, or the object's where the static's box
+    reaches the bottom border)."""
     N = len(contact)
     out = np.zeros(N, dtype=bool)
     on = np.flatnonzero(contact)
@@ -291,7 +312,7 @@ def _after_release(masks: np.ndarray, contact: np.ndarray, min_frames: int, bott
     narrower = np.minimum(obj[:, 2] - obj[:, 0], static[:, 2] - static[:, 0])
     h = masks.shape[-2]
     height = np.where(static[:, 3] >= h - 1, obj[:, 3] - obj[:, 1], static[:, 3] - static[:, 1])
-    placed = ((overlap >= 0.5 * narrower) & bottom_rule(obj[:, 3], static[:, 1], height) & (obj[:, 3] < static[:, 3]))
+    placed = (overlap >= 0.5 * narrower) & rule(obj, static, height) & (obj[:, 3] < static[:, 3])
     if placed.mean() >= share:
         out[after] = True
     return out
