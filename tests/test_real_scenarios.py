@@ -6,7 +6,7 @@ import pytest
 from warpskill.contract.actions import ACTIONS
 from warpskill.data.box_annotations import something_else_demonstration
 from warpskill.synthetic import make_demonstration, real_scenarios
-from warpskill.synthetic.scripts import TALL_THIN
+from warpskill.synthetic.scripts import NARROW_STATIC, TALL_THIN
 from warpskill.synthetic.spoil import (
     as_annotations,
     enters_view,
@@ -125,3 +125,16 @@ def test_a_real_scenario_demonstration_keeps_its_truth_and_its_situations():
 def test_real_scenarios_need_box_input():
     with pytest.raises(ValueError, match="scenarios"):
         make_demonstration("pick_up", input="masks", scenarios="real")
+
+
+@pytest.mark.parametrize("action", ["put_onto", "put_behind"])
+def test_narrow_static_boxes_are_narrower_than_the_object_and_deep(action):
+    for seed in range(2):
+        truth = make_demonstration(action, seed=seed, image_size=(H, W), duration=2.0, input="boxes",
+                                   scenarios="narrow").truth
+        (low, high), (shallow, deep) = NARROW_STATIC
+        width, depth = truth["static_size"][0, :2]
+        assert low * truth["object_size"][0] <= width <= high * truth["object_size"][0]
+        assert shallow <= depth <= deep
+    plain = make_demonstration(action, seed=0, image_size=(H, W), duration=2.0, input="boxes").truth
+    assert plain["static_size"][0, 0] > plain["object_size"][0]

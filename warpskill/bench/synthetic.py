@@ -86,8 +86,9 @@ def bench_synthetic(
             the optimiser at each scene's true values, e.g. ``["object_height"]``
             (``known_each`` of :func:`~warpskill.optimizer.optimize_many`).
         seed_start: the first seed (seeds ``seed_start .. seed_start + seeds - 1``).
-        scenarios: ``"real"`` mixes the real videos' situations into ``"boxes"`` demonstrations
-            (see :func:`warpskill.synthetic.make_demonstration`).
+        scenarios: ``"real"`` mixes the real videos' situations into ``"boxes"`` demonstrations,
+            ``"narrow"`` makes put actions' static boxes narrower than the object (see
+            :func:`warpskill.synthetic.make_demonstration`).
         baseline, save_baseline: see :func:`warpskill.bench.outcomes.record_outcomes`; the
             full method's per-case outcomes are also written to ``out`` (``outcomes.json``).
         nouns: give each demonstration an ``object_noun`` whose typical size is its object's

@@ -41,9 +41,10 @@ the ellipses inscribed in per-frame boxes of them, as the Something-Else reader 
 (``"boxes"``; contact from annotator-like phases, scenes with the real videos' situations)."""
 
 
-SCENARIOS = ("none", "real")
-"""Which situations a ``"boxes"`` demonstration adds: the default ones only, or also the held-out
-real videos' (:func:`real_scenarios`)."""
+SCENARIOS = ("none", "real", "narrow")
+"""Which situations a ``"boxes"`` demonstration adds: the default ones only, also the held-out
+real videos' (:func:`real_scenarios`), or a static box narrower than the object
+(:data:`~warpskill.synthetic.scripts.NARROW_STATIC`; put actions only)."""
 
 REAL_SCENARIOS = {
     "stops_early": ("pick_up",),
@@ -97,7 +98,8 @@ def make_demonstration(
             the real videos' situations (:data:`PICK_UP_ENDINGS`, a hand that enters
             through the border, wide static boxes cut by the frame; a put behind leaves
             the moved object partly or wholly hidden by the static box).
-        scenarios: one of :data:`SCENARIOS` (``input="boxes"`` only). ``"real"`` mixes in
+        scenarios: one of :data:`SCENARIOS` (``input="boxes"`` only). ``"narrow"`` makes a
+            put action's static box narrower than the object and deep. ``"real"`` mixes in
             the held-out real videos' situations, chosen by :func:`real_scenarios` (a
             deterministic function of action and seed): the spoilers of
             :data:`warpskill.synthetic.spoil.SPOILERS` and tall thin objects; the boxes and
@@ -120,6 +122,8 @@ def make_demonstration(
         variant = draw_variant(action, seed, variant_rng) if boxes else None
         if "tall_thin" in chosen:
             variant = replace(variant, object_size=tall_thin_size(variant_rng))
+        if scenarios == "narrow":
+            variant = replace(variant, narrow_static=True, wide_static=0.0)
         script = make_script(action, rng, duration, variant)
         truth = _simulate(script, fps, duration)
         masks = _render(truth, intrinsics)

@@ -48,6 +48,13 @@ class Variant:
     far_start: bool = False  # the hand enters (and leaves) through the image border
     wide_static: float = 0.0  # > 0: the static box is this wide [m] (larger than / cut by the frame)
     object_size: tuple[float, float, float] | None = None  # [m] the object's edges instead of drawn ones
+    narrow_static: bool = False  # the static box narrower than the object and deeper than wide
+
+
+NARROW_STATIC = ((0.4, 0.8), (0.12, 0.2))
+"""Ranges of a narrow static box's width [share of the object's width] and depth [m]: an
+object on it covers its top edge, as on the real videos' static objects, about as wide as
+the object (a real static box's width is 0.83 of the object's, median)."""
 
 
 TALL_THIN = ((0.02, 0.045), (0.02, 0.045), (0.15, 0.24))
@@ -86,6 +93,9 @@ def make_script(action: str, rng: np.random.Generator, duration: float, variant:
         static_yaw = np.array([u(-0.2, 0.2)])
         centre[0] += side * 0.12
         centre[1] -= 0.05
+        if variant is not None and variant.narrow_static:
+            (low, high), depth = NARROW_STATIC
+            static_size = np.array([[u(low, high) * size[0], u(*depth), s_size[2]]])
         if variant is not None and variant.wide_static:
             # A wide static box, cut by the frame: it extends away from the object.
             grow = variant.wide_static - s_size[0]
