@@ -13,8 +13,14 @@ from warpskill.engine.records import Rollout
 from warpskill.engine.rotations import yaw_rotation
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.guess import initial_guess
-from warpskill.optimizer.hypotheses import best_simulation, read_evidence, stage_a_candidates
-from warpskill.optimizer.inputs import carried_into_view, cut_by_static, rests_on_static
+from warpskill.optimizer.hypotheses import (
+    PhysicsHypothesis,
+    best_simulation,
+    chosen_simulation,
+    read_evidence,
+    stage_a_candidates,
+)
+from warpskill.optimizer.inputs import carried_into_view, cut_by_static, rests_on_static, within_static_across
 from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.pipeline import optimize
 from warpskill.optimizer.scene import (
@@ -228,6 +234,30 @@ def test_an_object_behind_the_static_box_is_told_from_one_on_it():
     turned.static_size = torch.tensor([[0.6, 0.3, 0.2]])  # 0.6 along x: after the turn, 0.6 deep
     turned.object_pos[-1, 1] = 0.2
     assert not ends_behind_static(turned)
+
+
+def test_only_an_object_within_the_static_box_columns_can_have_its_bottom_hidden_by_it():
+    # Bottom row 26 inside the static box (rows 20-34, columns 20-40) in both: an object
+    # within its columns may rest on it, or its bottom be hidden behind it; one wider than the
+    # box would show its bottom beside it, so behind is no contradiction there.
+    within = _masks((14, 26, 24, 36))
+    assert within_static_across(within, CONTACT).tolist() == [False] * 12 + [True] * 8
+    wider = _masks((14, 26, 14, 46))
+    assert rests_on_static(wider, CONTACT).any() and not within_static_across(wider, CONTACT).any()
+
+
+def test_ending_behind_contradicts_the_masks_only_where_the_static_box_could_hide_the_bottom():
+    cpu = torch.device("cpu")
+    behind = _one_box_scene(0.05, [0.1, 0.1, 0.1])
+    behind.object_pos[-1, 1] = 0.2
+    results = [PhysicalRollout(behind, None, None, None), PhysicalRollout(_one_box_scene(0.25, [0.1, 0.1, 0.1]),
+                                                                         None, None, None)]
+    own = [PhysicsHypothesis(0, behind, CONTACT, None, None, fit=2.6), PhysicsHypothesis(0, behind, CONTACT, None,
+                                                                                        None, fit=2.8)]
+    within = read_evidence(_box_demonstration((14, 26, 24, 36), STATIC), {}, OptimizeConfig(), cpu)
+    assert chosen_simulation(within, own, results) == 1  # the better fit ends behind: contradicted
+    wider = read_evidence(_box_demonstration((14, 26, 14, 46), STATIC), {}, OptimizeConfig(), cpu)
+    assert wider.resting.any() and chosen_simulation(wider, own, results) == 0
 
 
 def test_the_best_simulation_is_the_best_fit_the_masks_do_not_contradict():

@@ -32,6 +32,7 @@ from warpskill.optimizer.inputs import (
     cut_by_static,
     held_after_contact,
     rests_on_static,
+    within_static_across,
     working_inputs,
 )
 from warpskill.optimizer.scene import SceneTrajectories, ends_behind_static
@@ -67,6 +68,8 @@ class Evidence:
             size prior applies (``weights.object_noun_size`` on); None elsewhere.
         covering: (N,) bool, the frames of ``behind`` where the object's box spans the
             static's (:func:`~warpskill.optimizer.inputs.covers_static_top`).
+        enclosed: (N,) bool, frames after the release where the object's box lies within the
+            static's columns (:func:`~warpskill.optimizer.inputs.within_static_across`).
     """
 
     demo: Demonstration
@@ -79,6 +82,7 @@ class Evidence:
     behind: torch.Tensor | None
     typical_edge: float | None = None
     covering: np.ndarray | None = None
+    enclosed: np.ndarray | None = None
 
     @property
     def placement(self) -> np.ndarray:
@@ -99,13 +103,14 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
                                        noun_size_known=typical is not None)
     typical_edge = float(typical.edges[-1]) if typical is not None and weights.object_noun_size > 0 else None
     held = held_after_contact(inputs.masks.cpu().numpy(), inputs.contact_signal)
-    rest = cut = covering = np.zeros(demo.num_frames, dtype=bool)
+    rest = cut = covering = enclosed = np.zeros(demo.num_frames, dtype=bool)
     if demo.num_static:
         full = demo.mask_stack(*demo.image_size)
         rest, cut = rests_on_static(full, inputs.contact_signal), cut_by_static(full, inputs.contact_signal)
         covering = covers_static_top(full, inputs.contact_signal)
+        enclosed = within_static_across(full, inputs.contact_signal)
     return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut), typical_edge,
-                    covering=covering)
+                    covering=covering, enclosed=enclosed)
 
 
 @dataclass
@@ -246,9 +251,12 @@ def chosen_simulation(seen: Evidence, own: Sequence[PhysicsHypothesis], results:
 
     Where the masks show the object's bottom inside the static's box after the release, a
     simulation that ends with the object behind the box contradicts them: the renderer draws
-    the object whole, but the box would hide it there.
+    the object whole, but the box would hide it there. Only where the object's box lies
+    within the static's columns: an object wider than the box behind it shows its bottom
+    beside the box.
     """
-    contradicted = [bool(seen.resting.any()) and ends_behind_static(result.scene) for result in results]
+    hidden_bottom = bool(seen.resting.any()) and (seen.enclosed is None or bool(seen.enclosed.any()))
+    contradicted = [hidden_bottom and ends_behind_static(result.scene) for result in results]
     return best_simulation([h.fit for h in own], contradicted)
 
 
