@@ -250,10 +250,9 @@ def test_ending_behind_contradicts_the_masks_only_where_the_static_box_could_hid
     cpu = torch.device("cpu")
     behind = _one_box_scene(0.05, [0.1, 0.1, 0.1])
     behind.object_pos[-1, 1] = 0.2
-    results = [PhysicalRollout(behind, None, None, None), PhysicalRollout(_one_box_scene(0.25, [0.1, 0.1, 0.1]),
-                                                                         None, None, None)]
-    own = [PhysicsHypothesis(0, behind, CONTACT, None, None, fit=2.6), PhysicsHypothesis(0, behind, CONTACT, None,
-                                                                                        None, fit=2.8)]
+    on_top = _one_box_scene(0.25, [0.1, 0.1, 0.1])
+    results = [PhysicalRollout(scene, None, None, None) for scene in (behind, on_top)]  # only their ends are read
+    own = [PhysicsHypothesis(0, scene, CONTACT, None, None, fit=fit) for scene, fit in ((behind, 2.6), (on_top, 2.8))]
     within = read_evidence(_box_demonstration((14, 26, 24, 36), STATIC), {}, OptimizeConfig(), cpu)
     assert chosen_simulation(within, own, results) == 1  # the better fit ends behind: contradicted
     wider = read_evidence(_box_demonstration((14, 26, 14, 46), STATIC), {}, OptimizeConfig(), cpu)

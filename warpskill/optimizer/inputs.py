@@ -282,7 +282,8 @@ def covers_static_top(masks: np.ndarray, contact: np.ndarray, *, min_frames: int
     """
     def rule(obj: np.ndarray, static: np.ndarray, height: np.ndarray) -> np.ndarray:
         margin = 0.1 * (static[:, 2] - static[:, 0])
-        return _at_top_edge(obj, static, height) & (obj[:, 0] <= static[:, 0] + margin) & (obj[:, 2] >= static[:, 2] - margin)
+        spans = (obj[:, 0] <= static[:, 0] + margin) & (obj[:, 2] >= static[:, 2] - margin)
+        return _at_top_edge(obj, static, height) & spans
 
     return _after_release(masks, contact, min_frames, rule, share=0.8)
 
