@@ -127,6 +127,11 @@ def test_real_scenarios_need_box_input():
         make_demonstration("pick_up", input="masks", scenarios="real")
 
 
+def test_narrow_static_boxes_need_a_put_action():
+    with pytest.raises(ValueError, match="without one: pick_up"):
+        make_demonstration("pick_up", input="boxes", scenarios="narrow")
+
+
 @pytest.mark.parametrize("action", ["put_onto", "put_behind"])
 def test_narrow_static_boxes_are_narrower_than_the_object_and_deep(action):
     for seed in range(2):

@@ -20,7 +20,7 @@ from warpskill.contract.results_folder import ResultsFolder
 from warpskill.optimizer.known import check_known, measured
 from warpskill.optimizer.options import OptimizeOptions
 from warpskill.optimizer.pipeline import optimize_many
-from warpskill.synthetic import make_demonstration, real_scenarios
+from warpskill.synthetic import check_scenarios, make_demonstration, real_scenarios
 
 
 NOUN_SPREAD = 0.3
@@ -98,6 +98,7 @@ def bench_synthetic(
     options = options or OptimizeOptions()
 
     actions = list(actions or ACTIONS)
+    check_scenarios(scenarios, input, actions)
     rows: dict[str, list] = {"initialisation only": [], "full method": []}
     errors: dict[str, list] = {"initialisation only": [], "full method": []}
     seconds = []

@@ -9,7 +9,7 @@ by a frame, or per-frame boxes as annotators draw them (:mod:`.generator`). May 
 engine, the contract and the data layer's box masks; never the optimiser.
 """
 
-from warpskill.synthetic.generator import INPUTS, SCENARIOS, make_demonstration, real_scenarios
+from warpskill.synthetic.generator import INPUTS, SCENARIOS, check_scenarios, make_demonstration, real_scenarios
 from warpskill.synthetic.scripts import (
     GRASP_LEVEL,
     PICK_UP_ENDINGS,
@@ -28,6 +28,7 @@ __all__ = [
     "SPOILERS",
     "TIP_DEPTH",
     "Noise",
+    "check_scenarios",
     "make_demonstration",
     "real_scenarios",
     "scripted_inputs",

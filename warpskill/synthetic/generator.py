@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 from types import SimpleNamespace
+from typing import Sequence
 
 import numpy as np
 
@@ -60,6 +61,22 @@ MIX_RATE = 0.3
 """Probability of each applicable situation besides the one the seed picks."""
 
 
+def check_scenarios(scenarios: str, input: str, actions: Sequence[str]) -> None:
+    """Refuse ``scenarios`` that cannot apply: an unknown name, any but ``"none"`` without
+    box input, ``"narrow"`` for an action without a static box.
+
+    Raises:
+        ValueError: naming the scenario and what it needs.
+    """
+    if scenarios not in SCENARIOS or (scenarios != "none" and input != "boxes"):
+        raise ValueError(f"scenarios: expected one of {SCENARIOS} (other than 'none' only with input='boxes'), "
+                         f"got {scenarios!r} with input={input!r}")
+    unplaced = [action for action in actions if not action.startswith("put_")]
+    if scenarios == "narrow" and unplaced:
+        raise ValueError(f"scenarios 'narrow' narrows the static box of put actions; without one: "
+                         f"{', '.join(unplaced)} (give put actions only)")
+
+
 def real_scenarios(action: str, seed: int) -> tuple[str, ...]:
     """The real situations of one demonstration: the applicable one at ``seed`` modulo their
     number, and each other applicable one with probability :data:`MIX_RATE` (seeded)."""
@@ -109,9 +126,7 @@ def make_demonstration(
     check_action(action)
     if input not in INPUTS:
         raise ValueError(f"input: expected one of {INPUTS}, got {input!r}")
-    if scenarios not in SCENARIOS or (scenarios != "none" and input != "boxes"):
-        raise ValueError(f"scenarios: expected one of {SCENARIOS} (other than 'none' only with input='boxes'), "
-                         f"got {scenarios!r} with input={input!r}")
+    check_scenarios(scenarios, input, [action])
     chosen = real_scenarios(action, seed) if scenarios == "real" else ()
     noise = NOISE_LEVELS[noise] if isinstance(noise, str) else noise
     rng = np.random.default_rng([seed, ACTIONS.index(action)])
