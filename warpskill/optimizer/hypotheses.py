@@ -64,12 +64,12 @@ class Evidence:
             masks' own resolution: a few pixels tell the object on top from the object behind).
         behind: (N,) 1 in frames where the static box hides the object's lower part
             (:func:`~warpskill.optimizer.inputs.cut_by_static`); None when there are none.
-        typical_edge: [m] the largest edge of the typical size of the object's noun where its
-            size prior applies (``weights.object_noun_size`` on); None elsewhere.
         covering: (N,) bool, the frames of ``behind`` where the object's box spans the
             static's (:func:`~warpskill.optimizer.inputs.covers_static_top`).
         enclosed: (N,) bool, frames after the release where the object's box lies within the
             static's columns (:func:`~warpskill.optimizer.inputs.within_static_across`).
+        typical_edge: [m] the largest edge of the typical size of the object's noun where its
+            size prior applies (``weights.object_noun_size`` on); None elsewhere.
     """
 
     demo: Demonstration
@@ -80,17 +80,20 @@ class Evidence:
     uncertain: torch.Tensor | None
     resting: np.ndarray
     behind: torch.Tensor | None
+    covering: np.ndarray
+    enclosed: np.ndarray
     typical_edge: float | None = None
-    covering: np.ndarray | None = None
-    enclosed: np.ndarray | None = None
 
     @property
     def placement(self) -> np.ndarray:
         """(N,) bool, the frames where the object may stand on the static box's top: where
         it may rest on it, else where it covers the box's top edge (``covering``)."""
-        if self.resting.any() or self.covering is None:
-            return self.resting
-        return self.covering
+        return self.resting if self.resting.any() else self.covering
+
+    def behind_prior(self, support: torch.Tensor | None) -> torch.Tensor | None:
+        """``behind`` for a hypothesis with ``support`` (see :class:`Candidate`): none for a
+        placement on the static box, the other answer to the same frames."""
+        return self.behind if support is None else None
 
 
 def read_evidence(demo: Demonstration, known: dict[str, float], config: OptimizeConfig,
@@ -109,8 +112,8 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
         rest, cut = rests_on_static(full, inputs.contact_signal), cut_by_static(full, inputs.contact_signal)
         covering = covers_static_top(full, inputs.contact_signal)
         enclosed = within_static_across(full, inputs.contact_signal)
-    return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut), typical_edge,
-                    covering=covering, enclosed=enclosed)
+    return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut), covering, enclosed,
+                    typical_edge)
 
 
 @dataclass
@@ -255,7 +258,7 @@ def chosen_simulation(seen: Evidence, own: Sequence[PhysicsHypothesis], results:
     within the static's columns: an object wider than the box behind it shows its bottom
     beside the box.
     """
-    hidden_bottom = bool(seen.resting.any()) and (seen.enclosed is None or bool(seen.enclosed.any()))
+    hidden_bottom = bool(seen.resting.any()) and bool(seen.enclosed.any())
     contradicted = [hidden_bottom and ends_behind_static(result.scene) for result in results]
     return best_simulation([h.fit for h in own], contradicted)
 

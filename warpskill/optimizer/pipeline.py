@@ -193,9 +193,7 @@ def _with_known(options: OptimizeOptions, known: dict[str, float]) -> OptimizeOp
 
 def _stage_a_objective(candidates: Sequence[Candidate], evidence: Sequence[Evidence], config: OptimizeConfig,
                        backend: Backend) -> Objective:
-    """Stage (a)'s loss terms of the live candidates, their frames rendered in shared launches
-    (a placement on the static box is the other answer to the prior that puts the object
-    behind it: it goes without that prior, here and in stage (b))."""
+    """Stage (a)'s loss terms of the live candidates, their frames rendered in shared launches."""
 
     def objective(live: list[int]) -> list[dict[str, torch.Tensor]]:
         scenes = [candidates[j].parameters.scene() for j in live]
@@ -204,8 +202,7 @@ def _stage_a_objective(candidates: Sequence[Candidate], evidence: Sequence[Evide
                                [e.inputs.targets for e in seen])
         return [
             initial_objective(scene, masks, e.inputs.targets, e.inputs.contact, e.demo.fps, e.weights, e.uncertain,
-                              candidates[j].support, e.behind if candidates[j].support is None else None,
-                              e.typical_edge)
+                              candidates[j].support, e.behind_prior(candidates[j].support), e.typical_edge)
             for j, scene, masks, e in zip(live, scenes, rendered, seen)
         ]
 
@@ -268,8 +265,7 @@ def _stage_b_objective(hypotheses: Sequence[PhysicsHypothesis], evidence: Sequen
         for b, result, masks in zip(live, results, rendered):
             h, e = hypotheses[b], evidence[hypotheses[b].demo]
             terms.append(physical_objective(result, masks, e.inputs.targets, h.contact, e.inputs.object_visible,
-                                            e.weights, h.support, e.behind if h.support is None else None,
-                                            e.typical_edge))
+                                            e.weights, h.support, e.behind_prior(h.support), e.typical_edge))
         return terms
 
     return objective
