@@ -24,6 +24,7 @@ from warpskill.optimizer.inputs import carried_into_view, cut_by_static, rests_o
 from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.pipeline import optimize
 from warpskill.optimizer.scene import (
+    off_static_penalty,
     SceneTrajectories,
     ends_behind_static,
     in_front_of_back_penalty,
@@ -201,6 +202,21 @@ def test_a_static_box_inside_a_larger_object_is_penalised_and_one_under_it_is_no
     scene.object_pos.requires_grad_(True)
     static_in_object_penalty(scene, weights).backward()
     assert scene.object_pos.grad[:, 2].sum() < 0  # the gradient lifts the object off the static box
+
+
+def test_the_on_static_placement_keeps_the_object_centre_off_the_top_face_edge():
+    # Static top 30 x 30 cm, object 10 cm wide: the margin is 2.5 cm, so a centre 14 cm off
+    # the static's centre (inside its top face, 1 cm from the edge) is pulled inwards.
+    weights, supported = LossWeights(), torch.ones(2)
+    for x, penalised in ((0.0, False), (0.12, False), (0.14, True), (0.2, True)):
+        scene = _one_box_scene(0.25, [0.1, 0.1, 0.1])
+        scene.object_pos[:, 0] = x
+        scene.object_pos.requires_grad_(True)
+        penalty = off_static_penalty(scene, supported, weights)
+        assert (float(penalty) > 1e-6) is penalised, x
+        if penalised:
+            penalty.backward()
+            assert scene.object_pos.grad[:, 0].sum() > 0  # descent moves the centre back over the box
 
 
 def test_an_object_that_enters_through_the_border_is_held_from_the_first_frame():

@@ -181,10 +181,16 @@ def scene_priors(
 
 
 def off_static_penalty(scene: SceneTrajectories, supported: torch.Tensor, weights: LossWeights) -> torch.Tensor:
-    """How far the object's centre lies outside the first static box's footprint in the
-    ``supported`` (N,) frames (squared [m^2], weighted): the placement "on the static"."""
+    """How far the object's centre lies outside the first static box's footprint, shrunk by a
+    margin, in the ``supported`` (N,) frames (squared [m^2], weighted): the placement "on the static".
+
+    The margin, half the smaller of the object's half width and the static's half side, keeps
+    the centre off the edge: a centre just inside the top face tips over in the physics
+    and the object falls off the box it was put on."""
     local = (scene.object_pos - scene.static_pos[0]) @ scene.static_rot[0]
-    outside = (local[:, :2].abs() - 0.5 * scene.static_size[0, :2]).clamp_min(0.0).square().sum(-1)
+    half = 0.5 * scene.static_size[0, :2]
+    margin = 0.5 * torch.minimum(0.5 * scene.object_size[:2].min(), half)
+    outside = (local[:, :2].abs() - (half - margin)).clamp_min(0.0).square().sum(-1)
     return weights.penetration * (supported.to(outside) * outside).mean()
 
 
