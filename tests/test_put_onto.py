@@ -24,10 +24,10 @@ from warpskill.optimizer.inputs import carried_into_view, cut_by_static, rests_o
 from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.pipeline import optimize
 from warpskill.optimizer.scene import (
-    off_static_penalty,
     SceneTrajectories,
     ends_behind_static,
     in_front_of_back_penalty,
+    off_static_penalty,
     static_in_object_penalty,
 )
 from warpskill.optimizer.stage_a import initial_objective
