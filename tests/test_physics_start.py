@@ -52,6 +52,33 @@ def test_an_object_that_stage_a_kept_still_stays_where_it_is():
     assert torch.equal(scene.object_pos0.detach(), fit.object_pos[0])
 
 
+def _fit_from_above(gap: float) -> SceneTrajectories:
+    """Stage (a)'s per-frame scene: the cube of :func:`_fit` drifting 6 cm, and a hand coming
+    straight down over the cube's first place, whose tip stops ``gap`` [m] above its top at the
+    onset."""
+    fit = _fit(0.06)
+    t = torch.arange(N, dtype=torch.float32)
+    tip_z = SIZE + gap + 0.02 * (ONSET - t).clamp(min=0.0)
+    fit.hand_pos = torch.stack([torch.zeros_like(t), torch.full_like(t, 0.4), tip_z], 1)
+    return fit
+
+
+def test_a_resting_object_is_not_lifted_to_meet_a_hand_above_it():
+    fit = _fit_from_above(0.03)
+    scene = make_physical_scene(fit, CONTACT, FPS, OptimizeConfig())
+    # Raised to the tip, the cube would float and fall before the hand arrives: it stays on
+    # the ground, and the hand path moves down by its most (2 cm).
+    assert torch.equal(scene.object_pos0.detach(), fit.object_pos[0])
+    assert float(fit.hand_pos[0, 2] - scene.hand_pos0.detach()[2]) == pytest.approx(0.02, abs=1e-6)
+
+
+def test_an_object_carried_into_view_starts_where_the_hand_above_it_takes_it():
+    fit = _fit_from_above(0.03)
+    scene = make_physical_scene(fit, CONTACT, FPS, OptimizeConfig(), unseen_before_contact=True)
+    # Nothing says it rested: it starts in the hand, more than the 3 cm - 2 cm higher.
+    assert float(scene.object_pos0.detach()[2] - fit.object_pos[0, 2]) > 0.01
+
+
 def _sliding_hand(frames: int, bump: slice, height: float) -> SceneTrajectories:
     """Stage (a)'s per-frame scene: a hand sliding along +x at 10 cm/s, 10 cm above the
     ground, that stage (a) put ``height`` [m] higher in the ``bump`` frames; a cube far away."""

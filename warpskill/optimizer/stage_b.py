@@ -35,6 +35,7 @@ from warpskill.optimizer.weights import LossWeights
 
 CONTACT_FIT_WEIGHT = 50.0  # contact frames' weight in the hand spline's least-squares fit
 MAX_ONSET_SHIFT = 0.02  # [m] largest shift of the hand path that puts the tip inside at the onset
+_ACROSS = torch.tensor([1.0, 1.0, 0.0])  # keeps a displacement's horizontal part (world z is up)
 MISFIT_WINDOW = 4  # frames on each side of the running median of stage (a)'s hand loss
 MISFIT_SCALE = 0.2  # hand dIoU above that median at which a frame's weight in the spline's fit falls to 1/e
 
@@ -126,10 +127,14 @@ class PhysicalScene(SceneShape):
         self.hand_pos0 = P(fit.hand_pos[0] - shift * normal)
         # The rest of the gap moves the object, as far as stage (a) itself moved it before the
         # grasp (the engine keeps an untouched object where it starts; stage (a) only asks it
-        # to rest): anywhere for an object the masks never saw before the grasp (carried into
-        # the view), where the hand first takes it.
-        slack = float("inf") if unseen_before_contact else _drift_before_contact(fit, contact)
-        self.object_pos0 = P(fit.object_pos[0] + (gap - shift).clamp(max=slack) * normal)
+        # to rest), and only across its support: lifted, a resting object would fall before
+        # the hand reaches it. Anywhere for an object the masks never saw before the grasp
+        # (carried into the view), where the hand first takes it.
+        if unseen_before_contact:
+            move = (gap - shift) * normal
+        else:
+            move = (gap - shift).clamp(max=_drift_before_contact(fit, contact)) * normal * _ACROSS
+        self.object_pos0 = P(fit.object_pos[0] + move)
         self.object_rot6 = P(rotation_to_6d(fit.object_rot[0]))
         self.register_shape(fit)
 
