@@ -6,7 +6,7 @@ import torch
 
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.scene import SceneTrajectories
-from warpskill.optimizer.stage_b import isolated_misfit_weights, make_physical_scene
+from warpskill.optimizer.stage_b import START_CLEARANCE, isolated_misfit_weights, make_physical_scene
 
 N, FPS, ONSET = 16, 12.0, 8
 SIZE = 0.08  # [m] cube edge
@@ -126,3 +126,15 @@ def test_misfit_weights_refuse_missing_or_misaligned_losses():
         isolated_misfit_weights(np.array([0.1, np.nan, 0.2]))
     with pytest.raises(ValueError, match=r"hand_loss must be \(16,\)"):
         make_physical_scene(_fit(0.0), CONTACT, FPS, OptimizeConfig(), hand_loss=np.zeros(N - 1))
+
+
+def test_an_object_stage_a_left_in_a_static_box_starts_clear_and_stays_there():
+    fit = _fit(0.0)  # the cube rests at y = 0.4; a 30 x 20 x 10 cm box reaches 1.5 cm into its back
+    fit.static_pos = torch.tensor([[0.0, 0.4 + SIZE / 2 + 0.1 - 0.015, 0.05]])
+    fit.static_rot, fit.static_size = torch.eye(3)[None], torch.tensor([[0.3, 0.2, 0.1]])
+    scene = make_physical_scene(fit, np.zeros(N, dtype=bool), FPS, OptimizeConfig())
+    start = scene.object_pos0.detach()
+    assert float(fit.object_pos[0, 1] - start[1]) == pytest.approx(0.015 + START_CLEARANCE, abs=1e-6)  # out the front
+    with torch.no_grad():
+        moved = scene().rollout.object_pos[:, :2] - start[:2]
+    assert float(moved.norm(dim=-1).max()) < 0.002  # not knocked away by the box

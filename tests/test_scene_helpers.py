@@ -14,6 +14,7 @@ from warpskill.engine.rotations import (
 )
 from warpskill.optimizer.scene import positive, positive_inverse
 from warpskill.optimizer.stage_a import far_from_contact
+from warpskill.optimizer.stage_b import START_CLEARANCE, clear_of_statics
 
 
 def test_6d_rotations_are_orthonormal_and_round_trip():
@@ -55,6 +56,26 @@ def test_box_signed_distance_inside_and_outside():
     points = torch.tensor([[0.0, 0.0, 0.0], [0.0, 0.0, 0.08], [0.13, 0.08, 0.0]])
     d = box_signed_distance(points, pos, rot, size)
     assert d.tolist() == pytest.approx([-0.05, 0.03, float(np.hypot(0.03, 0.03))], abs=1e-5)
+
+
+def _static(yaw: float = 0.0, dtype=torch.float32):
+    """A 40 x 20 x 10 cm static box on the ground at the origin, yawed by ``yaw`` [rad]."""
+    return (torch.tensor([[0.0, 0.0, 0.05]], dtype=dtype), yaw_rotation(torch.tensor([yaw], dtype=dtype)),
+            torch.tensor([[0.4, 0.2, 0.1]], dtype=dtype))
+
+
+def test_an_object_started_inside_a_static_box_is_moved_out_the_shortest_way():
+    cube, eye = torch.tensor([0.05, 0.05, 0.05]), torch.eye(3)
+    out = clear_of_statics(torch.tensor([0.0, 0.11, 0.025]), eye, cube, *_static())
+    assert out.tolist() == pytest.approx([0.0, 0.125 + START_CLEARANCE, 0.025], abs=1e-6)  # out of the back
+    on_top = clear_of_statics(torch.tensor([0.05, 0.0, 0.12]), eye, cube, *_static())
+    assert on_top.tolist() == pytest.approx([0.05, 0.0, 0.125 + START_CLEARANCE], abs=1e-6)
+    apart = torch.tensor([0.0, 0.13, 0.025])
+    assert torch.equal(clear_of_statics(apart, eye, cube, *_static()), apart)
+    # Yawed by 90 deg, the static's 40 cm side runs along y: the first cube is deep inside it,
+    # and its shortest way out is up, 10 cm.
+    up = clear_of_statics(torch.tensor([0.0, 0.11, 0.025]), eye, cube, *_static(np.pi / 2))
+    assert up.tolist() == pytest.approx([0.0, 0.11, 0.125 + START_CLEARANCE], abs=1e-6)
 
 
 def test_majority_filter_removes_isolated_flips_only():

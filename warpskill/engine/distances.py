@@ -29,6 +29,25 @@ def lowest_corner_height(pos: torch.Tensor, rot: torch.Tensor, size: torch.Tenso
     return cuboid_vertices(pos, rot, size)[..., 2].amin(-1)
 
 
+def static_exits(pos: torch.Tensor, rot: torch.Tensor, size: torch.Tensor, static_pos: torch.Tensor,
+                 static_rot: torch.Tensor, static_size: torch.Tensor) -> torch.Tensor:
+    """How far [m] each cuboid must move to leave each static cuboid, (..., K, 5): along the
+    static's +x, -x, +y, -y and up (world z; statics are yawed only), comparing the cuboid's
+    corners with the static's faces. All five are positive only where the two overlap; the
+    smallest is then the overlap's depth and its index the shortest way out (a yawed cuboid's
+    corners overstate it a little).
+
+    Args:
+        pos, rot, size: (..., 3), (..., 3, 3), (..., 3) or (3,) cuboids.
+        static_pos, static_rot, static_size: (K, 3), (K, 3, 3), (K, 3) static cuboids.
+    """
+    corners = cuboid_vertices(pos, rot, size)  # (..., 8, 3)
+    local = torch.einsum("...kvj,kji->...kvi", corners.unsqueeze(-3) - static_pos[:, None], static_rot)
+    low, high, half = local.amin(-2), local.amax(-2), 0.5 * static_size
+    return torch.stack([half[:, 0] - low[..., 0], high[..., 0] + half[:, 0], half[:, 1] - low[..., 1],
+                        high[..., 1] + half[:, 1], half[:, 2] - low[..., 2]], -1)
+
+
 def support_height(points: torch.Tensor, static_pos: torch.Tensor, static_rot: torch.Tensor, static_size: torch.Tensor) -> torch.Tensor:
     """Height [m] of the surface under each point: a static cuboid's top where the point
     lies over its footprint, else the ground (0).

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from warpskill.engine.distances import box_signed_distance
+from warpskill.engine.distances import box_signed_distance, static_exits
 from warpskill.engine.records import Rollout, SceneInputs
 from warpskill.engine.rotations import rotation_from_6d, rotation_log, rotation_to_6d
 from warpskill.engine.simulation import PhysicsConfig, simulate, substeps_per_frame
@@ -35,6 +35,7 @@ from warpskill.optimizer.weights import LossWeights
 
 CONTACT_FIT_WEIGHT = 50.0  # contact frames' weight in the hand spline's least-squares fit
 MAX_ONSET_SHIFT = 0.02  # [m] largest shift of the hand path that puts the tip inside at the onset
+START_CLEARANCE = 0.002  # [m] left between an object moved out of a static box and its face
 _ACROSS = torch.tensor([1.0, 1.0, 0.0])  # keeps a displacement's horizontal part (world z is up)
 MISFIT_WINDOW = 4  # frames on each side of the running median of stage (a)'s hand loss
 MISFIT_SCALE = 0.2  # hand dIoU above that median at which a frame's weight in the spline's fit falls to 1/e
@@ -134,7 +135,8 @@ class PhysicalScene(SceneShape):
             move = (gap - shift) * normal
         else:
             move = (gap - shift).clamp(max=_drift_before_contact(fit, contact)) * normal * _ACROSS
-        self.object_pos0 = P(fit.object_pos[0] + move)
+        self.object_pos0 = P(clear_of_statics(fit.object_pos[0] + move, fit.object_rot[0], fit.object_size,
+                                              fit.static_pos, fit.static_rot, fit.static_size))
         self.object_rot6 = P(rotation_to_6d(fit.object_rot[0]))
         self.register_shape(fit)
 
@@ -280,6 +282,25 @@ def isolated_misfit_weights(hand_loss: np.ndarray) -> np.ndarray:
     window = np.lib.stride_tricks.sliding_window_view(np.pad(loss, MISFIT_WINDOW, mode="edge"), 2 * MISFIT_WINDOW + 1)
     excess = (loss - np.median(window, axis=-1)).clip(min=0.0)
     return np.exp(-((excess / MISFIT_SCALE) ** 2))
+
+
+def clear_of_statics(pos: torch.Tensor, rot: torch.Tensor, size: torch.Tensor, static_pos: torch.Tensor,
+                     static_rot: torch.Tensor, static_size: torch.Tensor) -> torch.Tensor:
+    """The object's centre ``pos`` (3,) [m] moved out of every static box its box overlaps, by
+    the shortest way out: across a side face, or up onto the top (:func:`static_exits`).
+
+    Stage (a) only asks the object to stay out of the static boxes; the engine makes it, and an
+    object started inside one is pushed out at once, knocked away from where the masks put it.
+    ``rot`` (3, 3), ``size`` (3,); statics (K, 3), (K, 3, 3) yawed only, (K, 3).
+    """
+    for k in range(len(static_pos)):
+        exits = static_exits(pos, rot, size, static_pos[k : k + 1], static_rot[k : k + 1], static_size[k : k + 1])[0]
+        if bool((exits > 0).all()):
+            way = int(torch.argmin(exits))
+            step = torch.zeros(3, dtype=pos.dtype)
+            step[way // 2] = (exits[way] + START_CLEARANCE) * (-1.0 if way in (1, 3) else 1.0)
+            pos = pos + static_rot[k] @ step
+    return pos
 
 
 def _drift_before_contact(fit: SceneTrajectories, contact: np.ndarray) -> float:
