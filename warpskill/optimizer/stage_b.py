@@ -297,7 +297,7 @@ def clear_of_statics(pos: torch.Tensor, rot: torch.Tensor, size: torch.Tensor, s
         exits = static_exits(pos, rot, size, static_pos[k : k + 1], static_rot[k : k + 1], static_size[k : k + 1])[0]
         if bool((exits > 0).all()):
             way = int(torch.argmin(exits))
-            step = torch.zeros(3, dtype=pos.dtype)
+            step = pos.new_zeros(3)
             step[way // 2] = (exits[way] + START_CLEARANCE) * (-1.0 if way in (1, 3) else 1.0)
             pos = pos + static_rot[k] @ step
     return pos
