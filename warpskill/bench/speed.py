@@ -161,7 +161,6 @@ def bench_speed(
     repeats: int = 3,
     measure_full: bool = False,
     scaling: bool = False,
-    threads: int | None = None,
 ) -> list[dict]:
     """Time both optimisation stages' iterations per engine and device; print one table.
 
@@ -173,8 +172,6 @@ def bench_speed(
             (minutes for the reference).
         scaling: also print stage (b) iteration times as frames, image size and the
             number of scenes B grow (:func:`bench_scaling`).
-        threads: Torch's CPU threads for the run (default: Torch's choice). Both engines
-            run many small Torch operations, which one thread often does fastest.
 
     Returns:
         The rows of the table: engine, device, per-iteration seconds of both stages,
@@ -183,10 +180,6 @@ def bench_speed(
     for name in engines:
         if name not in ENGINES:
             raise ValueError(f"engine must be one of {ENGINES}, got {name!r}")
-    if threads is not None:
-        if threads < 1:
-            raise ValueError(f"threads must be >= 1, got {threads}")
-        torch.set_num_threads(threads)
     rows = []
     for device in map(resolve_device, devices):
         problem = make_problem(device=device)

@@ -30,6 +30,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from warpskill.cli import bench, export, pipeline, prepare, robot, run, view
@@ -48,6 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     from warpskill.warp_log import configure_warp_log  # imports Warp: not for --help
 
     configure_warp_log(args.verbose)
+    set_torch_threads(args.torch_threads)
     try:
         return args.run(args) or 0
     except (ValueError, FileNotFoundError, ResultsFolderError) as error:  # bad input, a full disk: one clear line
@@ -55,10 +57,33 @@ def main(argv: list[str] | None = None) -> int:
         return 1
 
 
+def set_torch_threads(requested: int | None) -> None:
+    """Torch's CPU threads for this process: ``requested``; None: one, unless ``OMP_NUM_THREADS``
+    chooses.
+
+    The optimiser runs many small Torch operations: alone, one thread is as fast as two, and two
+    processes side by side with two threads each on two cores each ran five times slower.
+    """
+    if requested is None and "OMP_NUM_THREADS" in os.environ:
+        return
+    import torch
+
+    torch.set_num_threads(requested or 1)
+
+
+def _positive(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="warpskill", description="Learn a manipulation skill from one video.")
     parser.add_argument("--verbose", action="store_true",
                         help="show Warp's messages (module loads and compiles); before the command: warpskill --verbose demo")
+    parser.add_argument("--torch-threads", type=_positive, metavar="N",
+                        help="Torch's CPU threads (default: 1, or OMP_NUM_THREADS where set); before the command")
     commands = parser.add_subparsers(title="commands")
     for module in (pipeline, prepare, run, robot, export, bench, view):
         module.register(commands)

@@ -23,7 +23,6 @@ def register(commands) -> None:
     speed.add_argument("--repeats", type=int, default=3, help="timed iterations (median reported)")
     speed.add_argument("--full", action="store_true", help="also time warpskill.optimize end to end per engine")
     speed.add_argument("--scaling", action="store_true", help="also time iterations as frames, image size, B grow")
-    speed.add_argument("--threads", type=int, help="Torch CPU threads (default: Torch's choice)")
     speed.add_argument("--many", type=int, nargs="+", metavar="B",
                        help="also run warpskill.optimize_many on B synthetic demonstrations: demonstrations per second")
     speed.set_defaults(run=_bench_speed)
@@ -129,7 +128,7 @@ def _bench_speed(args) -> int:
 
     devices = ["cpu"] if args.device == "cpu" else ["cpu", args.device]
     bench_speed(devices=devices, engines=args.engines, repeats=args.repeats, measure_full=args.full,
-                scaling=args.scaling, threads=args.threads)
+                scaling=args.scaling)
     if args.many:
         bench_many(batches=args.many, devices=devices)
     return 0
