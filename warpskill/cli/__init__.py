@@ -66,9 +66,11 @@ def set_torch_threads(requested: int | None) -> None:
     """
     if requested is None and "OMP_NUM_THREADS" in os.environ:
         return
-    import torch
-
-    torch.set_num_threads(requested or 1)
+    threads = requested or 1
+    if "torch" in sys.modules:
+        sys.modules["torch"].set_num_threads(threads)
+    else:  # read when Torch is imported: commands without Torch do not pay for its import
+        os.environ["OMP_NUM_THREADS"] = str(threads)
 
 
 def _positive(text: str) -> int:
