@@ -33,9 +33,11 @@ def test_every_size_is_plausible_and_sourced():
     assert 0.07 < HAND_BREADTH < 0.1 and 0.16 < HAND_LENGTH < 0.21
 
 
-def test_size_ratio_is_the_scale_of_the_edges():
-    can = SIZES["can"]
+def test_size_ratio_is_the_scale_of_the_largest_edge():
+    can, pen = SIZES["can"], SIZES["pen"]
     assert size_ratio(2.2 * np.array([can.width, can.height, can.depth]), "cans") == pytest.approx(2.2)
+    # a pen drawn from its box comes out thick: only its length is compared
+    assert size_ratio(np.array([0.06, 1.5 * pen.width, 0.05]), "pen") == pytest.approx(1.5)
     assert size_ratio(np.array([0.1, 0.1, 0.1]), "allumunium ingot") is None
     with pytest.raises(ValueError, match="3 positive edge lengths"):
         size_ratio(np.array([0.1, 0.0, 0.1]), "can")

@@ -9,6 +9,8 @@ import pytest
 
 from warpskill.cli import main
 from warpskill.contract.demonstration import DemonstrationError
+from warpskill.contract.nouns import SIZES
+from warpskill.contract.reconstruction import Reconstruction
 from warpskill.data.box_annotations import (
     box_masks,
     read_something_else,
@@ -120,6 +122,9 @@ def test_bench_reports_each_videos_reconstruction_time_apart_from_its_pictures(t
     assert code == 0 and 0 < reconstructing <= total
     assert (tmp_path / "out" / "7" / "reconstruction.npz").is_file()
     assert f"reconstruction (both stages) per video: median {reconstructing:.1f} s" in out
+    # The object's size against its noun's (the placeholder "cup"), from the saved reconstruction.
+    largest = Reconstruction.load(tmp_path / "out" / "7" / "reconstruction.npz").object_size.max()
+    assert f"object size / its noun's typical size (largest edge): median {largest / SIZES['cup'].edges[-1]:.2f}x" in out
 
 
 @pytest.mark.skipif(DEV is None, reason="the shared development data is not next to the repository")

@@ -39,9 +39,11 @@ from warpskill.bench.end_to_end import (
 from warpskill.bench.outcomes import folder_outcomes, record_outcomes
 from warpskill.cluster import INSTALL_HINT, optimize_folder, ray_available
 from warpskill.contract.evaluation import evaluate, success_table
+from warpskill.contract.nouns import size_ratio
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
 from warpskill.data.box_annotations import (
+    object_noun as video_noun,
     read_something_else,
     something_else_demonstration,
 )
@@ -94,8 +96,9 @@ def bench_something_else(
         "seconds": {video_id: seconds}, "wall_seconds": seconds}`` (``seconds``: each video's
         reconstruction, both stages, where this run made it); with ``robot`` also
         ``"robot": {video_id: RobotOutcome or None}`` and ``"agreement"``
-        (:func:`~warpskill.bench.end_to_end.agreement`); and ``"outcomes"`` (the
-        :class:`~warpskill.bench.outcomes.CaseOutcome` of each video).
+        (:func:`~warpskill.bench.end_to_end.agreement`); ``"outcomes"`` (the
+        :class:`~warpskill.bench.outcomes.CaseOutcome` of each video); and ``"size_ratios"``
+        (:func:`noun_size_ratios`).
     """
     table = read_something_else(annotations, phases, actions)
     unknown = sorted(set(videos or ()) - set(table))
@@ -108,7 +111,8 @@ def bench_something_else(
     if workers is not None or address:
         if ray_available():
             result = _bench_on_ray(table, videos or list(table), out, options, pictures, workers, address, step)
-            return _with_outcomes(result, out, table, videos or list(table), baseline, save_baseline)
+            return _with_outcomes(result, out, table, videos or list(table), baseline, save_baseline,
+                                  options.object_noun)
         print(f"--workers needs Ray, which is not installed ({INSTALL_HINT}): running serially")
     results, failures, seconds = [], {}, {}
     for vid in videos or list(table):
@@ -151,15 +155,36 @@ def bench_something_else(
         if step is not None:
             step.run(vid, video.action, recon, evaluation.success, folder)
     result = _report(results, failures, seconds, time.perf_counter() - wall, "serial, in this process", step)
-    return _with_outcomes(result, out, table, videos or list(table), baseline, save_baseline)
+    return _with_outcomes(result, out, table, videos or list(table), baseline, save_baseline,
+                                  options.object_noun)
 
 
-def _with_outcomes(result: dict, out: Path, table, vids, baseline, save_baseline) -> dict:
-    """The run's result with its per-video outcomes added, written to ``out``, compared with ``baseline``."""
+def _with_outcomes(result: dict, out: Path, table, vids, baseline, save_baseline, object_noun) -> dict:
+    """The run's result with its per-video outcomes and size ratios added, written to ``out``,
+    compared with ``baseline``."""
     cases = {vid: table[vid].action for vid in vids if table[vid].action}
     outcomes = folder_outcomes(out, cases, result["failures"])
     record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
-    return {**result, "outcomes": outcomes}
+    ratios = noun_size_ratios(out, {vid: object_noun or video_noun(table[vid]) for vid in vids})
+    return {**result, "outcomes": outcomes, "size_ratios": ratios}
+
+
+def noun_size_ratios(out: Path, nouns: dict[str, str | None]) -> dict[str, float | None]:
+    """Each reconstructed object's size against its noun's typical size
+    (:func:`~warpskill.contract.nouns.size_ratio`; None: no typical size), per video id with a
+    reconstruction in ``out``; prints their median. ``nouns``: video id -> the object's noun."""
+    ratios = {}
+    for vid, noun in nouns.items():
+        path = out / vid / ResultsFolder.RECONSTRUCTION
+        if path.exists():
+            ratios[vid] = size_ratio(Reconstruction.load(path).object_size, noun)
+    known = [ratio for ratio in ratios.values() if ratio is not None]
+    unknown = [f"{vid} ({nouns[vid] or 'no noun'})" for vid, ratio in ratios.items() if ratio is None]
+    if known:
+        print(f"object size / its noun's typical size (largest edge): median {statistics.median(known):.2f}x "
+              f"({min(known):.2f}-{max(known):.2f}x over {len(known)} videos)"
+              + (f"; no typical size: {', '.join(unknown)}" if unknown else ""))
+    return ratios
 
 
 def _bench_on_ray(table, vids, out: Path, options, pictures, workers, address, step) -> dict:

@@ -135,15 +135,16 @@ def typical_size(noun: str | None) -> TypicalSize | None:
 
 def size_ratio(size: np.ndarray, noun: str | None) -> float | None:
     """How many times larger a reconstructed object (edges (3,) [m]) is than its noun's typical
-    size: the ratio of the geometric means of the edges (a scene's scale multiplies every
-    edge alike); None for a noun without a typical size."""
+    size: the ratio of the largest edges, as the noun size prior compares them (an object drawn
+    from boxes fills its box, so a thin one comes out thick: only its length is measured);
+    None for a noun without a typical size."""
     typical = typical_size(noun)
     if typical is None:
         return None
     edges = np.asarray(size, dtype=float)
     if edges.shape != (3,) or not (edges > 0).all():
         raise ValueError(f"size: expected 3 positive edge lengths [m], got {edges}")
-    return float(np.exp(np.log(edges).mean() - np.log(typical.edges).mean()))
+    return float(edges.max() / typical.edges[-1])
 
 
 def _singular(word: str) -> str:
