@@ -36,13 +36,13 @@ def test_the_noun_prior_is_the_squared_log_of_the_largest_edge_over_the_typical_
     assert torch.autograd.gradcheck(lambda s: noun_size_prior(_scene(s), weights, 0.2), (size,))
 
 
-def test_the_noun_prior_is_on_only_for_an_object_drawn_from_boxes_with_a_noun_and_no_known_length():
+def test_the_noun_prior_is_on_only_for_an_object_with_a_noun_and_no_known_length():
     weights = LossWeights(object_noun_size=1.0)
     for known_length in (False, True):
         for boxes in (False, True):
             for noun in (False, True):
                 scene = weights.for_scene(known_length=known_length, object_from_boxes=boxes, noun_size_known=noun)
-                on = boxes and noun and not known_length
+                on = noun and not known_length
                 assert scene.object_noun_size == (weights.object_noun_size if on else 0.0)
                 assert scene.camera_height == weights.for_scene(known_length=known_length,
                                                                 object_from_boxes=boxes).camera_height
@@ -51,11 +51,12 @@ def test_the_noun_prior_is_on_only_for_an_object_drawn_from_boxes_with_a_noun_an
 def test_the_evidence_carries_the_typical_edge_only_where_the_prior_applies():
     config, cpu = OptimizeConfig(weights=LossWeights(object_noun_size=1.0)), torch.device("cpu")
     boxes = make_demonstration("pick_up", seed=1, input="boxes", **SMALL)
-    masks = make_demonstration("pick_up", seed=0, **SMALL)  # an upright cuboid's silhouette: no box
+    masks = make_demonstration("pick_up", seed=0, **SMALL)  # an upright cuboid's silhouette
     assert read_evidence(boxes, {}, config, cpu, "coffee mugs").typical_edge == SIZES["mug"].edges[-1]
     assert read_evidence(boxes, {}, config, cpu, None).typical_edge is None
     assert read_evidence(boxes, {"object_height": 0.1}, config, cpu, "mug").typical_edge is None
-    assert read_evidence(masks, {}, config, cpu, "mug").typical_edge is None
+    assert read_evidence(masks, {}, config, cpu, "mug").typical_edge == SIZES["mug"].edges[-1]
+    assert read_evidence(masks, {"object_height": 0.1}, config, cpu, "mug").typical_edge is None
 
 
 def test_an_unknown_noun_adds_no_prior_and_says_so_in_one_line(capsys):
@@ -67,6 +68,17 @@ def test_an_unknown_noun_adds_no_prior_and_says_so_in_one_line(capsys):
         "object noun 'allumunium ingot': no typical size known, so no size prior"]
     np.testing.assert_array_equal(recon.object_size, plain.object_size)
     assert OptimizeOptions.from_json(str(recon.options)).object_noun == "allumunium ingot"
+
+
+def test_a_noun_beside_a_known_length_adds_no_prior_and_says_so_in_one_line(capsys):
+    demo = make_demonstration("pick_up", seed=1, input="boxes", **SMALL)
+    small = OptimizeConfig(init_iterations=2, rival_rungs=())
+    known = {"object_height": 0.1}
+    recon = optimize(demo, progress=False, init_only=True, config=small, object_noun="mug", known=known)
+    plain = optimize(demo, progress=False, init_only=True, config=small, known=known)
+    assert capsys.readouterr().out.strip().splitlines() == [
+        "object noun 'mug': the known object_height fixes the scale, so no size prior"]
+    np.testing.assert_array_equal(recon.object_size, plain.object_size)
 
 
 def test_the_command_line_noun_reaches_the_options():

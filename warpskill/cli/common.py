@@ -48,7 +48,7 @@ def add_optimize_options(parser: argparse.ArgumentParser, *, known_names: bool =
                            help=f"lengths known in advance, which fix the scene's scale, e.g. object_height=0.10 {names}")
     group.add_argument("--object-noun", default=None, metavar="NOUN",
                        help="what the manipulated object is (e.g. mug), instead of the demonstration's noun: "
-                            "where boxes leave the scale open, its typical size is a weak prior on the object's size")
+                            "without a known length, its typical size is a weak prior on the object's size")
     group.add_argument("--set", dest="settings", action="append", default=[], metavar="PATH=VALUE",
                        help="any setting of the options by its dotted path, e.g. config.init_iterations=100 or "
                             "config.weights.grasp_margin=0.01 (repeatable)")

@@ -123,7 +123,7 @@ def optimize_many(
     options = replace(options, device=str(device))  # saved as it ran: None and "cpu" are one run
     torch.manual_seed(options.seed)
     knowns = _knowns_each(options, known_each, len(demos))
-    nouns = [_object_noun(demo, options) for demo in demos]
+    nouns = [_object_noun(demo, options, known) for demo, known in zip(demos, knowns)]
     store = Checkpoint(checkpoint, _run_id(demos, options, backend, knowns, nouns))
     evidence = [read_evidence(demo, known, config, device, noun) for demo, known, noun in zip(demos, knowns, nouns)]
 
@@ -165,12 +165,16 @@ def _knowns_each(options: OptimizeOptions, known_each: Sequence[Mapping[str, flo
     return [check_known(k) for k in known_each]
 
 
-def _object_noun(demo: Demonstration, options: OptimizeOptions) -> str | None:
+def _object_noun(demo: Demonstration, options: OptimizeOptions, known: dict[str, float]) -> str | None:
     """The object's noun: ``options.object_noun``, else the demonstration's; one line says so
-    when the noun has no typical size (the run goes on without a size prior)."""
+    when the noun adds no size prior: it has no typical size, or a ``known`` length fixes the
+    scale (the run goes on without the prior)."""
     noun = options.object_noun or demo.object_noun
     if noun and typical_size(noun) is None:
         print(f"object noun {noun!r}: no typical size known, so no size prior", flush=True)
+    elif noun and known:
+        print(f"object noun {noun!r}: the known {', '.join(sorted(known))} fixes the scale, so no size prior",
+              flush=True)
     return noun
 
 

@@ -29,11 +29,9 @@ class LossWeights:
     typical_camera_height: float = 0.45  #: [m] a table filmed by a person standing or sitting at it
     object_footprint: float = 0.5  #: log(object depth / width)^2, both stages (see :meth:`for_scene`)
     #: log(largest object edge / its noun's typical largest edge)^2 (dimensionless: a ratio of
-    #: lengths), both stages (see :meth:`for_scene`); 1.0 is a log-normal prior of spread 0.7.
-    #: Off by default (opt in with ``--set config.weights.object_noun_size=1.0``): it brings
-    #: real objects near their nouns' sizes but has not yet held the success rate on the
-    #: development videos (docs/results-history.md).
-    object_noun_size: float = 0.0
+    #: lengths), both stages (see :meth:`for_scene`); 0.3 is a log-normal prior of spread 1.3,
+    #: weaker than the camera-height prior it pulls against (docs/results-history.md).
+    object_noun_size: float = 0.3
 
     def for_scene(self, *, known_length: bool, object_from_boxes: bool, noun_size_known: bool = False) -> "LossWeights":
         """These weights with each prior on only where it has something to decide.
@@ -52,17 +50,16 @@ class LossWeights:
         shape (docs/results-history.md has the measurements behind both rules).
 
         Object noun size (``object_noun_size``, the largest edge about its noun's typical
-        one, :mod:`warpskill.contract.nouns`): on only for an object drawn from boxes without
-        a known length, where nothing in the images fixes the scale and the camera-height
-        prior alone would decide it. The camera-height prior stays on beside it: both are
-        weak, and together they pull toward the scale both make likely.
+        one, :mod:`warpskill.contract.nouns`): on wherever no length is known, the images
+        then leaving the scale open. The camera-height prior stays on beside it: both are
+        weak, and together they pull toward the scale both make likely. A known length
+        fixes the scale better than a typical size.
 
         Args:
             known_length: a length of the scene is known (``known=``).
             object_from_boxes: the object's masks are drawn from boxes.
             noun_size_known: the object's noun has a typical size.
         """
-        open_scale = object_from_boxes and not known_length
         return replace(self, camera_height=0.0 if known_length and not object_from_boxes else self.camera_height,
                        object_footprint=self.object_footprint if known_length and object_from_boxes else 0.0,
-                       object_noun_size=self.object_noun_size if open_scale and noun_size_known else 0.0)
+                       object_noun_size=self.object_noun_size if noun_size_known and not known_length else 0.0)
