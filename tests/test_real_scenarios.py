@@ -96,6 +96,7 @@ def test_annotations_reach_the_demonstration_as_the_reader_delivers_them():
     assert demo.object_mask[-1].any() and demo.object_mask[5:7].any(axis=(1, 2)).all()
     assert not demo.hand_mask[3:10].any()
     assert any("the demonstration ends there" in note for note in notes)
+    assert demo.object_noun is None  # a synthetic cuboid is not named: no noun to compare sizes with
 
 
 def test_the_mix_is_deterministic_per_seed_and_covers_every_situation():

@@ -214,7 +214,8 @@ _CORNERS = ("x1", "y1", "x2", "y2")
 def as_annotations(boxes: np.ndarray, contact: np.ndarray, video_id: str = "0", action: str | None = None):
     """Boxes (C, N, 4) [px] and an action phase (N,) as a Something-Else video, as the real files
     have it: frames without any box are absent from the file; ``object hand``, ``object 0`` and
-    ``object <k + 1>`` labels; approach / action / leave phases (1-based, inclusive).
+    ``object <k + 1>`` labels, no nouns (a synthetic cuboid has none); approach / action / leave
+    phases (1-based, inclusive).
 
     Returns:
         a :class:`~warpskill.data.box_annotations.SomethingElseVideo` for
@@ -223,10 +224,10 @@ def as_annotations(boxes: np.ndarray, contact: np.ndarray, video_id: str = "0", 
     labels = ["object hand", *(f"object {c}" for c in range(len(boxes) - 1))]
     frames = []
     for k in range(boxes.shape[1]):
-        entries = [{"gt_annotation": label, "category": label, "box2d": dict(zip(_CORNERS, box.tolist()))}
+        entries = [{"gt_annotation": label, "box2d": dict(zip(_CORNERS, box.tolist()))}
                    for label, box in zip(labels, boxes[:, k]) if not np.isnan(box).any()]
         if entries:
-            frames.append({"name": f"{video_id}/{k + 1:04d}.jpg", "labels": entries, "gt_placeholders": labels[1:]})
+            frames.append({"name": f"{video_id}/{k + 1:04d}.jpg", "labels": entries})
     on = np.flatnonzero(contact)
     if not len(on):
         raise ValueError("contact: no frame in the action phase")
