@@ -1,5 +1,6 @@
 """The end of a pick-up: an object still held after the contact signal ends is for the physics to decide."""
 
+import dataclasses
 import importlib
 
 import numpy as np
@@ -7,10 +8,11 @@ import pytest
 import torch
 
 from warpskill.optimizer.config import OptimizeConfig
-from warpskill.optimizer.hypotheses import carried_start
+from warpskill.optimizer.hypotheses import PhysicsHypothesis, carried_start, chosen_simulation, read_evidence
 from warpskill.optimizer.inputs import held_after_contact
 from warpskill.optimizer.pipeline import optimize
 from warpskill.optimizer.scene import SceneTrajectories
+from warpskill.optimizer.stage_b import PhysicalRollout
 from warpskill.synthetic import make_demonstration
 
 optimize_module = importlib.import_module("warpskill.optimizer.pipeline")
@@ -102,3 +104,35 @@ def test_both_endings_go_through_the_physics_and_the_video_picks_one(monkeypatch
     optimize(make_demonstration("put_onto", seed=0, image_size=(60, 107), duration=2.0), config=small,
              progress=False)
     assert len(calls) == 1
+
+
+def _ending_at(start: SceneTrajectories, height: float) -> SceneTrajectories:
+    """``start`` with the object's last centre at ``height`` [m] (upright)."""
+    object_pos = start.object_pos.clone()
+    object_pos[-1, 2] = height
+    return dataclasses.replace(start, object_pos=object_pos)
+
+
+def test_a_release_that_drops_what_stage_a_leaves_in_the_air_is_ruled_out():
+    # A box pick-up's action phase ends while the hand still holds the object: both endings are tried.
+    demo = make_demonstration("pick_up", seed=0, input="boxes", image_size=(60, 107), duration=2.0)
+    seen = read_evidence(demo, {}, OptimizeConfig(), torch.device("cpu"))
+    given = seen.inputs.contact_signal
+    assert seen.held.any()
+    n, eye = demo.num_frames, torch.eye(3).expand(demo.num_frames, 3, 3)
+    scene = SceneTrajectories(torch.zeros(n, 3), eye, torch.tensor([[0.0, 0.5, 0.03]]).repeat(n, 1), eye,
+                              torch.full((3,), 0.06), torch.zeros(0, 3), torch.zeros(0, 3, 3), torch.zeros(0, 3),
+                              torch.tensor(0.45), torch.tensor(0.5))
+    on_ground, up = _ending_at(scene, 0.03), _ending_at(scene, 0.2)  # the object's bottom 0 or 17 cm up
+
+    def choice(stage_a_end: SceneTrajectories, released_fit: float) -> str:
+        own = [PhysicsHypothesis(0, stage_a_end, given, None, None, fit=released_fit),
+               PhysicsHypothesis(0, stage_a_end, given | seen.held, None, None, fit=1.0)]
+        results = [PhysicalRollout(on_ground, None, None, None), PhysicalRollout(up, None, None, None)]
+        return ["released", "held"][chosen_simulation(seen, own, results)]
+
+    # Stage (a) leaves the object 17 cm up at the end: dropping it contradicts the masks, however well it fits.
+    assert choice(up, released_fit=0.5) == "held"
+    # Stage (a) sets it down: the better fit decides.
+    assert choice(on_ground, released_fit=0.5) == "released"
+    assert choice(on_ground, released_fit=1.5) == "held"

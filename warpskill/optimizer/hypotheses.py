@@ -35,7 +35,7 @@ from warpskill.optimizer.inputs import (
     within_static_across,
     working_inputs,
 )
-from warpskill.optimizer.scene import SceneTrajectories, ends_behind_static
+from warpskill.optimizer.scene import SceneTrajectories, ends_behind_static, final_bottom
 from warpskill.optimizer.stage_a import InitialParameters
 from warpskill.optimizer.stage_b import PhysicalRollout, PhysicalScene
 from warpskill.optimizer.weights import LossWeights
@@ -248,6 +248,11 @@ def unseen_before_contact(seen: Evidence, signal: np.ndarray) -> bool:
     return len(onset) > 0 and not bool(seen.inputs.object_visible[: onset[0]].any())
 
 
+DROP = 0.05
+"""[m] how much lower than stage (a) a simulation may end the object before a release it
+assumes is contradicted (:func:`chosen_simulation`)."""
+
+
 def chosen_simulation(seen: Evidence, own: Sequence[PhysicsHypothesis], results: Sequence[PhysicalRollout]) -> int:
     """Index into ``own`` (one demonstration's hypotheses, with their final ``results``) of the
     simulation to keep: the best fit among those the masks do not contradict.
@@ -257,9 +262,18 @@ def chosen_simulation(seen: Evidence, own: Sequence[PhysicsHypothesis], results:
     the object whole, but the box would hide it there. Only where the object's box lies
     within the static's columns: an object wider than the box behind it shows its bottom
     beside the box.
+
+    Where the object may still be held after the contact signal ends, a simulation of the
+    signal as given (the object released) that ends the object more than :data:`DROP` lower
+    than stage (a) does contradicts them too: stage (a) fits each frame's masks without
+    physics, and an object it leaves in the air at the end, which the release drops, was held.
     """
     hidden_bottom = bool(seen.resting.any()) and bool(seen.enclosed.any())
-    contradicted = [hidden_bottom and ends_behind_static(result.scene) for result in results]
+    given = seen.inputs.contact_signal
+    contradicted = [(hidden_bottom and ends_behind_static(result.scene))
+                    or (bool(seen.held.any()) and np.array_equal(h.signal, given)
+                        and final_bottom(h.start) - final_bottom(result.scene) > DROP)
+                    for h, result in zip(own, results)]
     return best_simulation([h.fit for h in own], contradicted)
 
 

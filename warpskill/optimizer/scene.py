@@ -216,6 +216,12 @@ def ends_behind_static(scene: SceneTrajectories) -> bool:
     return bool(scene.object_pos[-1, 1] > static_back(scene))
 
 
+def final_bottom(scene: SceneTrajectories) -> float:
+    """Height [m] of the object's lowest point in the last frame."""
+    rot, size = scene.object_rot[-1], scene.object_size
+    return float(scene.object_pos[-1, 2] - 0.5 * (rot[2].abs() * size).sum())
+
+
 def static_back(scene: SceneTrajectories) -> torch.Tensor:
     """The depth y [m] (0-d) of the first static box's back, the face farthest from the camera."""
     yaw_cos, yaw_sin = scene.static_rot[0, 0, 0].abs(), scene.static_rot[0, 1, 0].abs()
