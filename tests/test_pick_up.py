@@ -38,6 +38,15 @@ def test_an_object_held_to_the_end_is_in_doubt_after_the_signal():
     assert held_after_contact(held, CONTACT).tolist() == [False] * 12 + [True] * 8
 
 
+def test_a_hand_box_ending_just_above_an_object_brought_near_still_holds_it():
+    # Brought toward the camera, the object hides the hand's tip: the hand's box ends a few
+    # pixels above the object's (2 rows here, a fifth of the object's 15 px side counts as touching).
+    near = _masks(lambda k: (0, 10, 18, 22), lambda k: (12, 20, 12, 28))
+    assert held_after_contact(near, CONTACT).tolist() == [False] * 12 + [True] * 8
+    apart = _masks(lambda k: (0, 10, 18, 22), lambda k: (10, 18, 12, 28) if k < 12 else (14, 22, 12, 28))
+    assert not held_after_contact(apart, CONTACT).any()
+
+
 def test_a_hand_that_lets_go_and_leaves_leaves_no_doubt():
     left = _masks(lambda k: (0, 10 if k < 15 else 4, 18, 22) if k < 15 else (0, 3, 30, 34), lambda k: (10, 16, 15, 25))
     assert not held_after_contact(left, CONTACT).any()

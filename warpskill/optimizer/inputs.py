@@ -158,7 +158,7 @@ def carried_into_view(masks: np.ndarray, contact: np.ndarray) -> np.ndarray:
 
 
 def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: int = 2,
-                       moved_share: float = 0.25, moved_px: float = 3.0) -> np.ndarray:
+                       moved_share: float = 0.25, moved_px: float = 3.0, touch_share: float = 0.2) -> np.ndarray:
     """(N,) bool: frames after the contact signal's end in which the object may still be held.
 
     Annotators may end the action phase while the hand still holds the object: it is then
@@ -167,7 +167,9 @@ def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: in
     the hand let go, and something says it did not:
 
     - in a frame with a hand box, the object's box (the bounds of its mask) touches the
-      hand's: a box apart from the hand's says the hand let go;
+      hand's, to within ``touch_share`` of its larger side: a box apart from the hand's says
+      the hand let go (an object brought toward the camera hides the hand's tip, and the
+      hand's box can end a few pixels short of it);
     - frames without a hand box are missing evidence, not a release (the hand may have
       left the annotation, or the view, with the object in it), but the object must show
       it was carried there: in at least ``min_frames`` of them its box's bottom row moved
@@ -188,6 +190,8 @@ def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: in
         moved_share, moved_px: how far [share of the box's larger side, px] the object's
             box must move in frames without a hand box to count as carried (both: a few
             pixels of an annotator's jitter are no motion).
+        touch_share: the gap between the object's and the hand's boxes that still counts
+            as touching [share of the object box's larger side; at least 1 px].
     """
     N = len(contact)
     out = np.zeros(N, dtype=bool)
@@ -198,8 +202,9 @@ def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: in
     hand, obj = _boxes(masks[:, 0] > 0.5), _boxes(masks[:, 1] > 0.5)
     visible, hand_seen = ~np.isnan(obj[:, 0]), ~np.isnan(hand[:, 0])
     with np.errstate(invalid="ignore"):
-        attached = ((hand[:, 0] <= obj[:, 2] + 1) & (obj[:, 0] <= hand[:, 2] + 1)
-                    & (hand[:, 1] <= obj[:, 3] + 1) & (obj[:, 1] <= hand[:, 3] + 1))
+        near = np.maximum(touch_share * np.maximum(obj[:, 2] - obj[:, 0], obj[:, 3] - obj[:, 1]), 1.0)
+        attached = ((hand[:, 0] <= obj[:, 2] + near) & (obj[:, 0] <= hand[:, 2] + near)
+                    & (hand[:, 1] <= obj[:, 3] + near) & (obj[:, 1] <= hand[:, 3] + near))
         at_border = visible & ((obj[:, 0] <= 0) | (obj[:, 1] <= 0) | (obj[:, 2] >= w - 1) | (obj[:, 3] >= h - 1))
     end = on[-1]
     seen = np.flatnonzero(visible[: end + 1])
