@@ -9,7 +9,7 @@ import pytest
 
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.skill import overlap_depth, skill_from
-from warpskill.export.layouts import HALF_ANGLE, INNER, OUTER, ReachableTable, sample_layouts
+from warpskill.export.layouts import BASE_CLEARANCE, HALF_ANGLE, INNER, OUTER, ReachableTable, sample_layouts
 from warpskill.synthetic import make_demonstration
 
 
@@ -36,6 +36,24 @@ def test_layouts_lie_in_reach_apart_and_are_seeded(put_skill):
                              recon.static_pos[0], recon.static_rot[0], recon.static_size[0]) == 0.0
     yaws = np.array([layout.object[2] for layout in drawn])
     assert np.all(np.abs(yaws) <= math.pi) and np.ptp(yaws) > math.pi  # any yaw, not one
+
+
+def test_a_long_objects_layouts_keep_it_out_of_the_robots_base():
+    # A 60 cm object centred on the sector (at least 35 cm from the base's axis) could reach
+    # into the robot's base column; no drawn layout lets it.
+    long = truth("push_left_to_right")
+    long = Reconstruction(**{**long.__dict__, "object_size": np.array([0.6, 0.08, 0.05])})
+    skill = skill_from(long)
+    table = ReachableTable.of(skill)
+    base = table.base[:2, 3]
+    for layout in sample_layouts(skill, 30, seed=0, table=table):
+        recon = skill.apply(layout)
+        grid = np.stack(np.meshgrid(*[np.linspace(-0.5, 0.5, 25)] * 3), -1).reshape(-1, 3)  # through the box
+        points = recon.object_pos[0] + (grid * recon.object_size) @ recon.object_rot[0].T
+        assert np.linalg.norm(points[:, :2] - base, axis=1).min() >= BASE_CLEARANCE - 1e-3
+    # a box across the base's axis, its corners far from it, is not clear
+    assert not table.clear_of_base(np.array([*base, 0.05]), np.eye(3), long.object_size)
+    assert table.clear_of_base(np.array([*base, 0.05]) + [0.0, 0.3, 0.0], np.eye(3), long.object_size)
 
 
 def test_table_samples_cover_the_sector_uniformly():

@@ -12,7 +12,8 @@ default placement: the scene centre 0.5 m ahead, the robot facing world +y).
 - each static box: uniform over the sector's area, yaw uniform in [-pi, pi);
 
 and keeps a draw only where the action still makes sense: the boxes' start footprints do not
-touch (:func:`~warpskill.contract.skill.overlap_depth` 0), :meth:`Skill.apply` accepts it
+touch (:func:`~warpskill.contract.skill.overlap_depth` 0) nor reach within
+:data:`BASE_CLEARANCE` of the robot's base axis, :meth:`Skill.apply` accepts it
 (no path through a static box) and the object's whole path, the ``put_*`` release beside or
 on the box included, stays on the sector.
 """
@@ -28,12 +29,13 @@ import numpy as np
 from warpskill.contract.skill import Layout, LayoutError, Skill, overlap_depth
 from warpskill.robot.model import make_scene
 
-__all__ = ["HALF_ANGLE", "INNER", "OUTER", "ReachableTable", "layouts", "sample_layouts"]
+__all__ = ["BASE_CLEARANCE", "HALF_ANGLE", "INNER", "OUTER", "ReachableTable", "layouts", "sample_layouts"]
 
 INNER = 0.35  # [m] nearest reach from the base's axis (closer, the arm folds onto itself)
 OUTER = 0.70  # [m] farthest comfortable reach at table height (the Panda's limit is about 0.85 m)
 HALF_ANGLE = math.radians(50.0)  # [rad] bearings either side of the robot's forward axis
 MAX_DRAWS = 1000  # draws per layout before giving up
+BASE_CLEARANCE = 0.15  # [m] nearest a box may start to the base's axis (its column is about 0.11 m in radius)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,6 +67,14 @@ class ReachableTable:
         """Whether world points (..., 2) [m] lie on the sector."""
         radius, bearing = self.polar(xy)
         return (radius >= self.inner) & (radius <= self.outer) & (np.abs(bearing) <= self.half_angle)
+
+    def clear_of_base(self, pos: np.ndarray, rot: np.ndarray, size: np.ndarray) -> bool:
+        """Whether a box (centre (3,) [m], rotation (3, 3), edges (3,) [m]) keeps at least
+        :data:`BASE_CLEARANCE` from the base's vertical axis: a long object centred on the
+        sector can still reach into the robot."""
+        axis_point = np.array([*self.base[:2, 3], pos[2]])  # the axis at the box centre's height
+        local = np.abs(rot.T @ (axis_point - pos)) - 0.5 * np.asarray(size)
+        return bool(np.linalg.norm(np.maximum(local, 0.0)) >= BASE_CLEARANCE)
 
     def sample(self, rng: np.random.Generator) -> np.ndarray:
         """(2,) a world point uniform over the sector's area."""
@@ -108,7 +118,8 @@ def _draw(skill: Skill, table: ReachableTable, rng: np.random.Generator) -> Layo
 
 
 def _sensible(skill: Skill, layout: Layout, table: ReachableTable) -> bool:
-    """Whether the start footprints are apart, the skill applies and its object path stays on the table."""
+    """Whether the start footprints are apart and clear of the robot's base, the skill applies
+    and its object path stays on the table."""
     try:
         recon = skill.apply(layout)
     except LayoutError:
@@ -116,4 +127,5 @@ def _sensible(skill: Skill, layout: Layout, table: ReachableTable) -> bool:
     boxes = [(recon.object_pos[0], recon.object_rot[0], recon.object_size),
              *zip(recon.static_pos, recon.static_rot, recon.static_size)]
     apart = all(overlap_depth(*boxes[i], *boxes[j]) == 0.0 for i in range(len(boxes)) for j in range(i + 1, len(boxes)))
-    return apart and bool(np.all(table.contains(recon.object_pos[:, :2])))
+    clear = all(table.clear_of_base(*box) for box in boxes)
+    return apart and clear and bool(np.all(table.contains(recon.object_pos[:, :2])))
