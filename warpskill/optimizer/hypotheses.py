@@ -269,12 +269,17 @@ def chosen_simulation(seen: Evidence, own: Sequence[PhysicsHypothesis], results:
     physics, and an object it leaves in the air at the end, which the release drops, was held.
     """
     hidden_bottom = bool(seen.resting.any()) and bool(seen.enclosed.any())
-    given = seen.inputs.contact_signal
-    contradicted = [(hidden_bottom and ends_behind_static(result.scene))
-                    or (bool(seen.held.any()) and np.array_equal(h.signal, given)
-                        and final_bottom(h.start) - final_bottom(result.scene) > DROP)
+    contradicted = [(hidden_bottom and ends_behind_static(result.scene)) or drops_a_held_object(seen, h, result)
                     for h, result in zip(own, results)]
     return best_simulation([h.fit for h in own], contradicted)
+
+
+def drops_a_held_object(seen: Evidence, hypothesis: PhysicsHypothesis, result: PhysicalRollout) -> bool:
+    """Whether ``result`` releases the object at the contact signal's end (``hypothesis`` has
+    the signal as given, where ``seen`` has frames in which the object may still be held) and
+    ends it more than :data:`DROP` below stage (a)'s last frame."""
+    released = bool(seen.held.any()) and np.array_equal(hypothesis.signal, seen.inputs.contact_signal)
+    return released and final_bottom(hypothesis.start) - final_bottom(result.scene) > DROP
 
 
 def best_simulation(fits: Sequence[float], contradicted: Sequence[bool]) -> int:
