@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -41,8 +42,7 @@ def test_layouts_lie_in_reach_apart_and_are_seeded(put_skill):
 def test_a_long_objects_layouts_keep_it_out_of_the_robots_base():
     # A 60 cm object centred on the sector (at least 35 cm from the base's axis) could reach
     # into the robot's base column; no drawn layout lets it.
-    long = truth("push_left_to_right")
-    long = Reconstruction(**{**long.__dict__, "object_size": np.array([0.6, 0.08, 0.05])})
+    long = dataclasses.replace(truth("push_left_to_right"), object_size=np.array([0.6, 0.08, 0.05]))
     skill = skill_from(long)
     table = ReachableTable.of(skill)
     base = table.base[:2, 3]

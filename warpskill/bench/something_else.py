@@ -155,8 +155,7 @@ def bench_something_else(
         if step is not None:
             step.run(vid, video.action, recon, evaluation.success, folder)
     result = _report(results, failures, seconds, time.perf_counter() - wall, "serial, in this process", step)
-    return _with_outcomes(result, out, table, videos or list(table), baseline, save_baseline,
-                                  options.object_noun)
+    return _with_outcomes(result, out, table, videos or list(table), baseline, save_baseline, options.object_noun)
 
 
 def _with_outcomes(result: dict, out: Path, table, vids, baseline, save_baseline, object_noun) -> dict:
