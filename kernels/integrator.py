@@ -2,7 +2,7 @@
 
 Step n reads state n from per-step arrays (B, S + 1) and writes state n + 1; nothing is
 carried across iterations in locals, so Warp's reverse pass replays every step exactly. Per
-step, with r = x_o - x_h and s the grasp switch (1 = grasped):
+step, with r = x_o - x_h and s the latched grasp switch (1 = grasped; :func:`_grasp_switch`):
 
     ds = s_n - s_{n-1}  (s_{-1} = s_0)
     v_o += max(ds, 0) (-v_o) + max(-ds, 0) (v_h + w_h x r),   w_o likewise with w_h
@@ -30,12 +30,18 @@ from .geometry import exp_so3, orthonormalize
 
 
 @wp.func
-def _grasp_switch(tip_distance: Any, grasp: Any, tau: Any):
-    """Soft grasp state sigmoid(-max(tip_distance, -grasp) / tau) in [0, 1] (1 = grasped)."""
-    one = type(tau)(1.0)
-    x = -wp.max(tip_distance, -grasp) / tau
-    e = wp.exp(-wp.abs(x))  # overflow-free sigmoid
-    return wp.where(x >= type(tau)(0.0), one / (one + e), e / (one + e))
+def _sigmoid(x: Any):
+    """Overflow-free logistic function."""
+    one = type(x)(1.0)
+    e = wp.exp(-wp.abs(x))
+    return wp.where(x >= type(x)(0.0), one / (one + e), e / (one + e))
+
+
+@wp.func
+def _grasp_switch(tip_distance: Any, grasp: Any, held: Any, tau: Any):
+    """Latched grasp state min(sigmoid(grasp / tau), max(held, sigmoid(-tip_distance / tau))) in
+    [0, 1] (1 = grasped), ``held`` the previous state (0 at the start)."""
+    return wp.min(_sigmoid(grasp / tau), wp.max(held, _sigmoid(-tip_distance / tau)))
 
 
 @functools.cache
@@ -90,7 +96,7 @@ def _kernels(dtype):
 
         # state 0: the object at rest (own velocities zero)
         d0 = tip_distance(hand_pos0_in[b], object_pos0_in[b], object_rot0_in[b], size)
-        s0 = _grasp_switch(d0, grasp0_in[b], grasp_tau)
+        s0 = _grasp_switch(d0, grasp0_in[b], zero, grasp_tau)
         v_h0 = vec3(hand_vel_in[b, 0, 0], hand_vel_in[b, 0, 1], hand_vel_in[b, 0, 2])
         w_h0 = vec3(hand_vel_in[b, 0, 3], hand_vel_in[b, 0, 4], hand_vel_in[b, 0, 5])
         hand_pos_out[b, 0] = hand_pos0_in[b]
@@ -156,7 +162,7 @@ def _kernels(dtype):
             hand_pos_out[b, n + 1] = x_h_new
             hand_rot_out[b, n + 1] = turn_h * hand_rot_out[b, n]
             grasp_out[b, n + 1] = g_new
-            grasped_out[b, n + 1] = _grasp_switch(d_new, g_new, grasp_tau)
+            grasped_out[b, n + 1] = _grasp_switch(d_new, g_new, s, grasp_tau)
             tip_distance_out[b, n + 1] = d_new
             object_pos_out[b, n + 1] = x_o_new
             object_rot_out[b, n + 1] = rot_o_new

@@ -5,6 +5,7 @@ import pytest
 import torch
 
 from warpskill.engine.records import SceneInputs
+from warpskill.engine.reference.physics import simulate_reference
 from warpskill.engine.simulation import PhysicsConfig, simulate, substeps_per_frame
 
 FPS = 12.0
@@ -22,12 +23,18 @@ def _tilt(angle: float) -> np.ndarray:
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
-def _run(duration: float, *, hand_vel=None, hand_pos0=None, grasp0=None, statics=(), **objects) -> object:
-    """Simulate B float32 scenes; objects: object_pos0, object_rot0, object_size as (B, ...) arrays;
-    statics: one (pos, yaw, size) per scene (same K = 0 or 1 for all)."""
+def _run(duration: float, **scene) -> object:
+    """Simulate the float32 scenes of :func:`_inputs`."""
+    return simulate(_inputs(duration, **scene), steps_per_frame=SPF, fps=FPS)
+
+
+def _inputs(duration: float, *, hand_vel=None, hand_pos0=None, grasp0=None, statics=(), dtype=torch.float32,
+            **objects) -> SceneInputs:
+    """The inputs of B scenes in ``dtype``; objects: object_pos0, object_rot0, object_size as (B, ...)
+    arrays; statics: one (pos, yaw, size) per scene (same K = 0 or 1 for all)."""
     B = len(objects["object_pos0"])
     steps = int(round(duration * FPS)) * SPF
-    f32 = lambda a: torch.tensor(np.asarray(a, dtype=np.float64), dtype=torch.float32)  # noqa: E731
+    f32 = lambda a: torch.tensor(np.asarray(a, dtype=np.float64), dtype=dtype)  # noqa: E731
     K = 1 if statics else 0
     inputs = SceneInputs(
         hand_pos0=f32(np.tile([0.0, 0.0, 1.0], (B, 1)) if hand_pos0 is None else hand_pos0),
@@ -41,7 +48,7 @@ def _run(duration: float, *, hand_vel=None, hand_pos0=None, grasp0=None, statics
         static_rot=f32([[_yaw(s[1])] for s in statics]).reshape(B, K, 3, 3),
         static_size=f32([[s[2]] for s in statics]).reshape(B, K, 3),
     )
-    return simulate(inputs, steps_per_frame=SPF, fps=FPS)
+    return inputs
 
 
 def _corners(pos: torch.Tensor, rot: torch.Tensor, size: np.ndarray) -> np.ndarray:
@@ -102,6 +109,53 @@ def test_grasped_cuboid_follows_the_hand():
     assert (offset - offset[:1]).norm(dim=-1).max() < 1e-5  # [m]
     assert (relative - relative[:1]).abs().max() < 1e-4
     assert out.hand_pos[0, -1, 0] > 0.25 and torch.linalg.det(R_h[-1]) == pytest.approx(1.0, abs=1e-4)
+
+
+REST = 0.05 - REST_DEPTH  # [m] centre height of the 10 cm tall cuboid of _draw_back_and_lift
+
+
+def _draw_back_and_lift(dtype=torch.float32) -> SceneInputs:
+    """The tip comes 2.5 cm towards a side face from 2 cm off it, then draws back 5 cm the way it
+    came while lifting 15 cm (the grasp signal open throughout)."""
+    duration = 1.5
+    steps = int(round(duration * FPS)) * SPF
+    t = np.arange(steps) / (FPS * SPF)
+    vel = np.zeros((1, steps, 7))
+    vel[0, t < 0.25, 0] = 0.1
+    back_and_up = (t >= 0.4) & (t < 0.9)
+    vel[0, back_and_up, 0], vel[0, back_and_up, 2] = -0.1, 0.3
+    return _inputs(duration, hand_vel=vel, hand_pos0=[[-0.05, 0.0, 0.07]], grasp0=[0.02], dtype=dtype,
+                   object_pos0=[[0.0, 0.0, REST]], object_rot0=np.eye(3)[None],
+                   object_size=np.array([[0.06, 0.06, 0.1]]))
+
+
+def test_a_grasp_closed_by_a_tip_just_inside_holds_as_the_hand_draws_back_and_lifts():
+    """As the tip enters, the closing grasp drags the object along, so the tip gets no deeper
+    than a few tau and the switch stays below 1. Drawing back leaves the object behind by
+    (1 - s) of the hand's motion and pulls the tip back out: the latched switch keeps the
+    grip (an unlatched one lets go within three frames and drops the object)."""
+    out = simulate(_draw_back_and_lift(), steps_per_frame=SPF, fps=FPS)
+    closed = int(np.argmax(out.grasped[0].numpy() > 0.5))
+    assert out.tip_distance[0, closed : closed + 2].min() > -0.003  # [m]
+    assert out.grasped[0, closed:].min() > 0.9
+    assert out.object_pos[0, -1, 2].item() - REST > 0.12  # carried up (of 15 cm)
+    assert out.tip_distance[0, -1] > 0.0  # the tip itself has come out
+
+
+def test_the_reference_latches_the_grasp_alike():
+    """Warp against the plain-Torch reference (float64) where the latch decides: values and
+    the gradients of every output's sum."""
+    results = []
+    for simulator in (simulate, simulate_reference):
+        inputs = _draw_back_and_lift(torch.float64).map(lambda v: v.requires_grad_(True))
+        out = simulator(inputs, steps_per_frame=SPF, fps=FPS)
+        sum(value.sum() for value in vars(out).values()).backward()
+        results.append((out, {name: value.grad for name, value in inputs.items()}))
+    (warp, warp_grads), (ref, ref_grads) = results
+    for name in vars(warp):
+        assert (getattr(warp, name) - getattr(ref, name)).abs().max() < 1e-9, name
+    for name, grad in warp_grads.items():
+        assert (grad - ref_grads[name]).norm() <= 1e-8 * grad.norm(), name
 
 
 def test_released_cuboid_keeps_the_hand_velocity_and_lands():

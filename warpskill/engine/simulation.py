@@ -34,7 +34,7 @@ class PhysicsConfig:
         gravity: gravitational acceleration [m/s^2], acting along -z.
         free_damping: linear and angular damping c of the free object [1/s].
         grasp_decay: decay k_g of the object's own velocity while grasped [1/s].
-        grasp_tau: width tau of the grasp switch sigmoid [m].
+        grasp_tau: width tau of the grasp switch's sigmoids [m].
         max_dt: largest stable integration step [s].
     """
 

@@ -182,10 +182,10 @@ class PhysicalScene(SceneShape):
 
         The spline only approximates stage (a)'s hand path, and stage (a) only asks for the
         tip to be inside on average; millimetres decide whether the grasp switch saturates
-        (a switch below 1 carries the object only partly, and it slips out). Moving the tip
-        by ``-gap * normal`` (or the object by ``+gap * normal``) closes it, along the normal
-        of the object's face nearest to the tip; once the grasp closes, the rigid carry keeps
-        the depth.
+        (the latched switch holds what it reached, and one below 1 carries the object only
+        partly, lagging the hand). Moving the tip by ``-gap * normal`` (or the object by
+        ``+gap * normal``) closes it, along the normal of the object's face nearest to the
+        tip; once the grasp closes, the rigid carry keeps the depth.
         """
         onset = np.flatnonzero(contact)
         if len(onset) == 0:

@@ -16,8 +16,9 @@ The hand is driven by the per-step velocities ``hand_vel`` held constant over ea
 jumps at every step boundary; each step is therefore its own dopri5 solve (the same as one
 solve with a jump at every boundary), started with the step itself as first trial step.
 
-Events: s switches where f = max(d_tip, -g) changes sign (grasp where it falls below 0,
-release where it rises above). A step whose end has f of the other sign is solved again
+Events: a grasp where f = max(d_tip, -g) falls below 0, a release where -g rises above it
+(the grasp is latched: once closed it holds until the signal lets go, as the rigid carry
+keeps the tip where it was). A step whose end has f of the other sign is solved again
 with :func:`torchdiffeq.odeint_event`, which finds the event time t*; there a grasp zeroes
 the own velocities, a release adds the hand's carrying velocities to them (the total
 velocity stays continuous), and the rest of the step is solved in the new regime. At most
@@ -83,9 +84,12 @@ class _Scene:
         self.fall = torch.zeros_like(object_size)
         self.fall[:, 2] = -config.gravity
 
-    def event(self, y: torch.Tensor) -> torch.Tensor:
-        """f = max(d_tip, -g) (scalar) [m]: negative while grasped."""
+    def event(self, y: torch.Tensor, grasped: bool) -> torch.Tensor:
+        """The switch's event function (scalar) [m], negative while grasped: f = max(d_tip, -g)
+        while free, -g while ``grasped`` (the grasp holds until the signal lets go)."""
         x = _unpack(y)
+        if grasped:
+            return -x["grasp"][0]
         distance = tip_distance(x["hand_pos"], x["object_pos"], x["object_rot"], self.object_size)
         return torch.maximum(distance, -x["grasp"])[0]
 
@@ -151,7 +155,7 @@ def _step(scene: _Scene, y: torch.Tensor, grasped: bool, drive: torch.Tensor, t0
     f = scene.rhs(grasped, drive)
     end = _solve(f, y, t0, t1, tolerances)
     with torch.no_grad():
-        switched = bool(scene.event(end) < 0) != grasped
+        switched = bool(scene.event(end, grasped) < 0) != grasped
     if not switched:
         return end, grasped, None
     # Locate the event (no gradient), then link its time and the jump up to the inputs.
@@ -160,7 +164,7 @@ def _step(scene: _Scene, y: torch.Tensor, grasped: bool, drive: torch.Tensor, t0
             f,
             y.detach(),
             torch.tensor(t0, dtype=y.dtype, device=y.device),
-            event_fn=lambda t, state: scene.event(state),
+            event_fn=lambda t, state: scene.event(state, grasped),
             method="dopri5",
             rtol=tolerances[0],
             atol=tolerances[1],
@@ -171,11 +175,11 @@ def _step(scene: _Scene, y: torch.Tensor, grasped: bool, drive: torch.Tensor, t0
     g = scene.rhs(not grasped, drive)
     with torch.enable_grad():
         probe = before.detach().requires_grad_(True)
-        (gradient,) = torch.autograd.grad(scene.event(probe), probe)
+        (gradient,) = torch.autograd.grad(scene.event(probe, grasped), probe)
     with torch.no_grad():
         f_before = f(t_event, before)
     rate = (gradient * f_before).sum()  # df/dt at the event along the old regime's flow (a constant)
-    shift = -scene.event(before) / rate  # t* - t_event: value ~ 0, gradient -(df/dp) / (df/dt)
+    shift = -scene.event(before, grasped) / rate  # t* - t_event: value ~ 0, gradient -(df/dp) / (df/dt)
     at_event = scene.jump(before + f_before * shift, not grasped, drive)
     with torch.no_grad():
         f_after = g(t_event, at_event)
@@ -199,7 +203,7 @@ def _scene_rollout(config: PhysicsConfig, inputs: SceneInputs, b: int, steps_per
         "own_ang_vel": torch.zeros_like(pick("object_pos0")),
     }
     y = _pack(state)
-    grasped = bool(scene.event(y) < 0)
+    grasped = bool(scene.event(y, False) < 0)
     frames = [_frame(scene, y, grasped, hand_vel[0])]
     events = []
     for n in range(hand_vel.shape[0]):

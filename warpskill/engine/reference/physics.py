@@ -37,9 +37,11 @@ def sample_points(size: torch.Tensor) -> torch.Tensor:
     return unit * size[:, None, :]
 
 
-def grasp_switch(tip_distance: torch.Tensor, grasp: torch.Tensor, tau: float) -> torch.Tensor:
-    """s = sigmoid(-max(tip_distance, -grasp) / tau) in [0, 1] (1 = grasped)."""
-    return torch.sigmoid(-torch.maximum(tip_distance, -grasp) / tau)
+def grasp_switch(tip_distance: torch.Tensor, grasp: torch.Tensor, held: torch.Tensor, tau: float) -> torch.Tensor:
+    """s = min(sigmoid(grasp / tau), max(held, sigmoid(-tip_distance / tau))) in [0, 1] (1 = grasped),
+    ``held`` the previous state (0 at the start): once the tip is in, the grasp holds until
+    the signal lets go."""
+    return torch.minimum(torch.sigmoid(grasp / tau), torch.maximum(held, torch.sigmoid(-tip_distance / tau)))
 
 
 def tip_distance(hand_pos, object_pos, object_rot, object_size) -> torch.Tensor:
@@ -130,7 +132,7 @@ def simulate_reference(
         "hand_pos": hand_pos0,
         "hand_rot": hand_rot0,
         "grasp": grasp0,
-        "grasped": grasp_switch(distance, grasp0, config.grasp_tau),
+        "grasped": grasp_switch(distance, grasp0, torch.zeros_like(grasp0), config.grasp_tau),
         "tip_distance": distance,
         "object_pos": object_pos0,
         "object_rot": object_rot0,
@@ -148,7 +150,7 @@ def simulate_reference(
             config, dt, points, statics, fall, state, s - previous_switch, v_h, w_h, grasp_rate, carried
         )
         new["tip_distance"] = tip_distance(new["hand_pos"], new["object_pos"], new["object_rot"], object_size)
-        new["grasped"] = grasp_switch(new["tip_distance"], new["grasp"], config.grasp_tau)
+        new["grasped"] = grasp_switch(new["tip_distance"], new["grasp"], s, config.grasp_tau)
         previous_switch, state = s, new
         if (n + 1) % steps_per_frame == 0:
             frames.append(frame(state, total_vel, total_ang_vel))
