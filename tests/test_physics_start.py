@@ -6,7 +6,7 @@ import torch
 
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.scene import SceneTrajectories
-from warpskill.optimizer.stage_b import START_CLEARANCE, isolated_misfit_weights, make_physical_scene
+from warpskill.optimizer.stage_b import START_CLEARANCE, grasp_window, isolated_misfit_weights, make_physical_scene
 
 N, FPS, ONSET = 16, 12.0, 8
 SIZE = 0.08  # [m] cube edge
@@ -138,3 +138,21 @@ def test_an_object_stage_a_left_in_a_static_box_starts_clear_and_stays_there():
     with torch.no_grad():
         moved = scene().rollout.object_pos[:, :2] - start[:2]
     assert float(moved.norm(dim=-1).max()) < 0.002  # not knocked away by the box
+
+
+def test_the_grasp_signal_is_open_by_the_first_contact_frame():
+    """The spline cannot step: fitted to the contact alone, the grasp signal would cross zero
+    at the onset and hold the switch half open there, while the tip enters. Its target opens
+    half a knot interval early, so at the onset it is near its full level."""
+    scene = make_physical_scene(_fit(0.0), CONTACT, FPS, OptimizeConfig())
+    with torch.no_grad():
+        grasp = scene().rollout.grasp
+    level = 2.0 * OptimizeConfig().weights.grasp_margin
+    assert float(grasp[ONSET]) > 0.75 * level
+    assert float(grasp[ONSET - 4]) < 0.0  # still shut well before
+
+
+def test_the_grasp_window_opens_a_few_frames_before_each_contact():
+    contact = np.array([0, 0, 0, 0, 1, 1, 0, 0, 1, 0], dtype=bool)
+    assert grasp_window(contact, 2).astype(int).tolist() == [0, 0, 1, 1, 1, 1, 1, 1, 1, 0]
+    assert grasp_window(np.ones(3, dtype=bool), 2).all() and not grasp_window(np.zeros(3, dtype=bool), 2).any()

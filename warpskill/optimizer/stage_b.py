@@ -68,7 +68,8 @@ class PhysicalScene(SceneShape):
         fps: frame rate [1/s].
         knots_per_second: density of the hand's velocity spline.
         pre_roll, post_roll: still time [s] simulated before and after the video.
-        grasp_level: |g| [m] the grasp signal starts at, positive in contact frames.
+        grasp_level: |g| [m] the grasp signal starts at, positive in contact frames and half a
+            knot interval before them (:func:`grasp_window`).
         physics: engine constants.
         known: lengths held at their values (:data:`warpskill.optimizer.known.KNOWN_LENGTHS`).
         unseen_before_contact: the object's mask is empty in every frame before the first
@@ -113,7 +114,10 @@ class PhysicalScene(SceneShape):
 
         P = torch.nn.Parameter
         fit = fit.detached("cpu")
-        grasp_target = torch.where(torch.as_tensor(contact, dtype=torch.bool), grasp_level, -grasp_level)
+        # A spline fitted to a step crosses zero at the step: opened early, the signal is near its
+        # level when the tip enters, and the switch closes fully.
+        lead = math.ceil(0.5 * self.fps / knots_per_second)
+        grasp_target = torch.where(torch.as_tensor(grasp_window(contact, lead)), grasp_level, -grasp_level)
         self.hand_rot6 = P(rotation_to_6d(fit.hand_rot[0]))
         self.grasp0 = P(grasp_target[0].reshape(()).clone())
         if hand_loss is not None and np.shape(hand_loss) != (N,):
@@ -301,6 +305,14 @@ def clear_of_statics(pos: torch.Tensor, rot: torch.Tensor, size: torch.Tensor, s
             step[way // 2] = (exits[way] + START_CLEARANCE) * (-1.0 if way in (1, 3) else 1.0)
             pos = pos + static_rot[k] @ step
     return pos
+
+
+def grasp_window(contact: np.ndarray, lead: int) -> np.ndarray:
+    """(N,) bool: the ``contact`` (N,) frames and the ``lead`` frames before each run of them."""
+    window = np.asarray(contact, dtype=bool).copy()
+    for onset in np.flatnonzero(np.diff(np.concatenate([[False], window])) > 0):
+        window[max(0, onset - lead) : onset] = True
+    return window
 
 
 def _drift_before_contact(fit: SceneTrajectories, contact: np.ndarray) -> float:
