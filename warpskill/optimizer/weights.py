@@ -29,9 +29,9 @@ class LossWeights:
     typical_camera_height: float = 0.45  #: [m] a table filmed by a person standing or sitting at it
     object_footprint: float = 0.5  #: log(object depth / width)^2, both stages (see :meth:`for_scene`)
     #: log(largest object edge / its noun's typical largest edge)^2 (dimensionless: a ratio of
-    #: lengths), both stages (see :meth:`for_scene`); 0.3 is a log-normal prior of spread 1.3,
-    #: weaker than the camera-height prior it pulls against (docs/results-history.md).
-    object_noun_size: float = 0.3
+    #: lengths), both stages (see :meth:`for_scene`); 0.5 is a log-normal prior of spread 1.0,
+    #: as strong as the camera-height prior it pulls against (docs/results-history.md).
+    object_noun_size: float = 0.5
 
     def for_scene(self, *, known_length: bool, object_from_boxes: bool, noun_size_known: bool = False) -> "LossWeights":
         """These weights with each prior on only where it has something to decide.
