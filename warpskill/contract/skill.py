@@ -176,6 +176,24 @@ def _support_extent(rot: np.ndarray, size: np.ndarray, direction: np.ndarray) ->
     return 0.5 * float(np.abs(rot.T @ direction) @ size)
 
 
+def _on_top_floor(pos: np.ndarray, rot: np.ndarray, size: np.ndarray, static_pos: np.ndarray,
+                  static_rot: np.ndarray, static_size: np.ndarray) -> np.ndarray:
+    """(F,) [m] the lowest centre height of an object (centres ``pos`` (F, 3), rotations ``rot``
+    (F, 3, 3)) set down on a static box's top: its bottom at most :data:`GRAZE` into the box,
+    in the frames where its centre is over the top face; -inf elsewhere.
+
+    The physics' point contact lets an object resting on a static box sink into it, by up to
+    about a centimetre over the seconds after the release; a skill set down on the box stands
+    on its top instead, as a layout's overlap check asks.
+    """
+    up = np.array([0.0, 0.0, 1.0])
+    local = (pos - static_pos) @ static_rot
+    over = np.all(np.abs(local[:, :2]) <= 0.5 * static_size[:2], axis=1)
+    top = static_pos[2] + _support_extent(static_rot, static_size, up)
+    floor = top - GRAZE + np.array([_support_extent(r, size, up) for r in rot])
+    return np.where(over, floor, -np.inf)
+
+
 def overlap_depth(pos_a, rot_a, size_a, pos_b, rot_b, size_b) -> float:
     """How deep [m] two cuboids interpenetrate (0 where they are apart): the least overlap over
     the separating-axis candidates (the 3 + 3 face normals and their 9 cross products)."""
@@ -307,7 +325,9 @@ class Skill(SceneCounts):
         The demonstrated motion from the new start, resting as deep as before (a resized
         object keeps its bottom's heights); a ``put_*`` path bends, with the progress along
         it, to end at the release relative to the static box; a carried object is lifted
-        over the static boxes in its way (:func:`_carry_lift`).
+        over the static boxes in its way (:func:`_carry_lift`); an object put onto the box
+        rests on its top from the release on, at most :data:`GRAZE` deep in it
+        (:func:`_on_top_floor`).
         """
         x, y, yaw = layout.object
         start_rot = _rot_z(yaw - heading(self.object_start_rot)) @ self.object_start_rot
@@ -320,6 +340,9 @@ class Skill(SceneCounts):
         if self.action.startswith("put_") and k_off is not None and self.num_static:
             target = self._release_point(pos[k_off], rot[k_off], size, static_pos[0], static_rot[0])
             pos += _progress(self.object_motion_pos, k_on, k_off)[:, None] * (target - pos[k_off])
+            if self.action == "put_onto":
+                floor = _on_top_floor(pos[k_off:], rot[k_off:], size, static_pos[0], static_rot[0], self.static_size[0])
+                pos[k_off:, 2] = np.maximum(pos[k_off:, 2], floor)
         if not _world_directed(self.action):
             pos[:, 2] += _carry_lift(pos, rot, size, (static_pos, static_rot, self.static_size), k_on, k_off, self.fps)
         return pos, rot
