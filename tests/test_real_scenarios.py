@@ -6,7 +6,7 @@ import pytest
 from warpskill.contract.actions import ACTIONS
 from warpskill.data.box_annotations import something_else_demonstration
 from warpskill.synthetic import make_demonstration, real_scenarios
-from warpskill.synthetic.scripts import NARROW_STATIC, TALL_THIN
+from warpskill.synthetic.scripts import NARROW_STATIC, TALL_THIN, TURNED_STATIC_YAW, Variant
 from warpskill.synthetic.spoil import (
     as_annotations,
     enters_view,
@@ -128,9 +128,29 @@ def test_real_scenarios_need_box_input():
         make_demonstration("pick_up", input="masks", scenarios="real")
 
 
-def test_narrow_static_boxes_need_a_put_action():
+@pytest.mark.parametrize("scenarios", ["narrow", "turned"])
+def test_static_box_scenarios_need_a_put_action(scenarios):
     with pytest.raises(ValueError, match="without one: pick_up"):
-        make_demonstration("pick_up", input="boxes", scenarios="narrow")
+        make_demonstration("pick_up", input="boxes", scenarios=scenarios)
+
+
+def static_yaw(truth: dict) -> float:
+    """The first static box's yaw [rad] from its ground-truth rotation."""
+    rotation = truth["static_rot"][0]
+    return float(np.arctan2(rotation[1, 0], rotation[0, 0]))
+
+
+def test_turned_static_boxes_turn_the_same_scene_farther():
+    yaws = []
+    for seed in range(4):
+        kwargs = dict(seed=seed, image_size=(H, W), duration=2.0, input="boxes")
+        plain = make_demonstration("put_behind", **kwargs).truth
+        turned = make_demonstration("put_behind", scenarios="turned", **kwargs).truth
+        assert np.allclose(turned["static_size"], plain["static_size"])  # the same scene, only turned
+        assert abs(static_yaw(turned)) <= TURNED_STATIC_YAW
+        assert static_yaw(turned) == pytest.approx(static_yaw(plain) * TURNED_STATIC_YAW / Variant.static_yaw)
+        yaws.append(abs(static_yaw(turned)))
+    assert max(yaws) > Variant.static_yaw  # beyond what the plain scenes ever draw
 
 
 @pytest.mark.parametrize("action", ["put_onto", "put_behind"])

@@ -87,7 +87,8 @@ def bench_synthetic(
             (``known_each`` of :func:`~warpskill.optimizer.optimize_many`).
         seed_start: the first seed (seeds ``seed_start .. seed_start + seeds - 1``).
         scenarios: ``"real"`` mixes the real videos' situations into ``"boxes"`` demonstrations,
-            ``"narrow"`` makes put actions' static boxes narrower than the object (see
+            ``"narrow"`` makes put actions' static boxes narrower than the object, ``"turned"``
+            turns them by up to 30 deg (see
             :func:`warpskill.synthetic.make_demonstration`).
         baseline, save_baseline: see :func:`warpskill.bench.outcomes.record_outcomes`; the
             full method's per-case outcomes are also written to ``out`` (``outcomes.json``).

@@ -17,6 +17,7 @@ from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.raycast import raycast_masks
 from warpskill.engine.simulation import simulate
 from warpskill.synthetic.scripts import (
+    TURNED_STATIC_YAW,
     Script,
     draw_variant,
     make_script,
@@ -42,10 +43,14 @@ the ellipses inscribed in per-frame boxes of them, as the Something-Else reader 
 (``"boxes"``; contact from annotator-like phases, scenes with the real videos' situations)."""
 
 
-SCENARIOS = ("none", "real", "narrow")
+SCENARIOS = ("none", "real", "narrow", "turned")
 """Which situations a ``"boxes"`` demonstration adds: the default ones only, also the held-out
-real videos' (:func:`real_scenarios`), or a static box narrower than the object
-(:data:`~warpskill.synthetic.scripts.NARROW_STATIC`; put actions only)."""
+real videos' (:func:`real_scenarios`), a static box narrower than the object
+(:data:`~warpskill.synthetic.scripts.NARROW_STATIC`) or one turned by up to
+:data:`~warpskill.synthetic.scripts.TURNED_STATIC_YAW` (both put actions only)."""
+
+STATIC_SCENARIOS = ("narrow", "turned")
+"""The scenarios that change the static box: put actions only."""
 
 REAL_SCENARIOS = {
     "stops_early": ("pick_up",),
@@ -63,7 +68,7 @@ MIX_RATE = 0.3
 
 def check_scenarios(scenarios: str, input: str, actions: Sequence[str]) -> None:
     """Refuse ``scenarios`` that cannot apply: an unknown name, any but ``"none"`` without
-    box input, ``"narrow"`` for an action without a static box.
+    box input, :data:`STATIC_SCENARIOS` for an action without a static box.
 
     Raises:
         ValueError: naming the scenario and what it needs.
@@ -72,8 +77,8 @@ def check_scenarios(scenarios: str, input: str, actions: Sequence[str]) -> None:
         raise ValueError(f"scenarios: expected one of {SCENARIOS} (other than 'none' only with input='boxes'), "
                          f"got {scenarios!r} with input={input!r}")
     unplaced = [action for action in actions if not action.startswith("put_")]
-    if scenarios == "narrow" and unplaced:
-        raise ValueError(f"scenarios 'narrow' narrows the static box of put actions; without one: "
+    if scenarios in STATIC_SCENARIOS and unplaced:
+        raise ValueError(f"scenarios {scenarios!r} changes the static box of put actions; without one: "
                          f"{', '.join(unplaced)} (give put actions only)")
 
 
@@ -116,7 +121,8 @@ def make_demonstration(
             through the border, wide static boxes cut by the frame; a put behind leaves
             the moved object partly or wholly hidden by the static box).
         scenarios: one of :data:`SCENARIOS` (``input="boxes"`` only). ``"narrow"`` makes a
-            put action's static box narrower than the object and deep. ``"real"`` mixes in
+            put action's static box narrower than the object and deep, ``"turned"`` turns it by
+            up to :data:`~warpskill.synthetic.scripts.TURNED_STATIC_YAW`. ``"real"`` mixes in
             the held-out real videos' situations, chosen by :func:`real_scenarios` (a
             deterministic function of action and seed): the spoilers of
             :data:`warpskill.synthetic.spoil.SPOILERS` and tall thin objects; the boxes and
@@ -139,6 +145,8 @@ def make_demonstration(
             variant = replace(variant, object_size=tall_thin_size(variant_rng))
         if scenarios == "narrow":
             variant = replace(variant, narrow_static=True, wide_static=0.0)
+        if scenarios == "turned":
+            variant = replace(variant, static_yaw=TURNED_STATIC_YAW)
         script = make_script(action, rng, duration, variant)
         truth = _simulate(script, fps, duration)
         masks = _render(truth, intrinsics)

@@ -49,12 +49,18 @@ class Variant:
     wide_static: float = 0.0  # > 0: the static box is this wide [m] (larger than / cut by the frame)
     object_size: tuple[float, float, float] | None = None  # [m] the object's edges instead of drawn ones
     narrow_static: bool = False  # the static box narrower than the object and deeper than wide
+    static_yaw: float = 0.2  # [rad] the static box's yaw is drawn in [-static_yaw, static_yaw]
 
 
 NARROW_STATIC = ((0.4, 0.8), (0.12, 0.2))
 """Ranges of a narrow static box's width [share of the object's width] and depth [m]: an
 object on it covers its top edge, as on the real videos' static objects, about as wide as
 the object (a real static box's width is 0.83 of the object's, median)."""
+
+
+TURNED_STATIC_YAW = 0.52
+"""[rad] half-range of a turned static box's yaw (30 deg, as the independent generator
+``synthdemo.py`` draws it; objects on a real table stand at any yaw)."""
 
 
 TALL_THIN = ((0.02, 0.045), (0.02, 0.045), (0.15, 0.24))
@@ -90,7 +96,8 @@ def make_script(action: str, rng: np.random.Generator, duration: float, variant:
         side = rng.choice([-1.0, 1.0])
         static_pos = np.array([[centre[0] - side * 0.1, centre[1] + u(0.0, 0.05), s_size[2] / 2]])
         static_size = s_size[None]
-        static_yaw = np.array([u(-0.2, 0.2)])
+        half_range = variant.static_yaw if variant is not None else Variant.static_yaw
+        static_yaw = np.array([u(-half_range, half_range)])
         centre[0] += side * 0.12
         centre[1] -= 0.05
         if variant is not None and variant.narrow_static:
