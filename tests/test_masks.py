@@ -24,10 +24,16 @@ def test_largest_component_keeps_the_biggest_blob_per_frame():
 def test_drop_specks_empties_frames_far_below_the_typical_area():
     out = drop_specks(largest_component(_frames()), 0.1)
     assert out[0].sum() == 64 and out[1].sum() == 64 and not out[2].any()
-    assert np.array_equal(clean_masks(_frames()), out)
+    assert np.array_equal(clean_masks(_frames(), 0.1), out)
     assert drop_specks(np.zeros((2, 4, 4), dtype=bool)).sum() == 0
     with pytest.raises(ValueError, match="min_fraction"):
         drop_specks(_frames(), 1.5)
+
+
+def test_the_default_clean_up_keeps_a_small_frame():
+    # An object going behind another shows as a sliver: evidence, not a speck.
+    out = clean_masks(_frames())
+    assert out[2].sum() == 2 and out[0].sum() == 64
 
 
 def test_subsample_in_space_and_time():

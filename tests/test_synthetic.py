@@ -1,5 +1,8 @@
 """Synthetic demonstrations: valid files, physically consistent truth that meets the metric, real noise."""
 
+from dataclasses import replace
+
+import cv2
 import numpy as np
 import pytest
 
@@ -29,6 +32,22 @@ def test_noise_spoils_masks_and_contact_but_keeps_them_valid():
     assert 0.001 < changed < 0.2
     assert noisy.hand_mask.any() and noisy.object_mask.any() and noisy.contact.any()
     assert set(NOISE_LEVELS) == {"none", "low", "moderate", "high"}
+
+
+def test_spurious_blobs_are_cleaned_away_as_the_readers_clean_a_segmenters_masks():
+    blobs = replace(NOISE_LEVELS["none"], blob_rate=1.0)  # a spurious blob in every frame
+    demo = make_demonstration("put_behind", seed=0, noise=blobs)
+    exact = make_demonstration("put_behind", seed=0, noise="none")
+    for mask in (demo.hand_mask, demo.object_mask, *demo.static_mask):
+        assert max(_blob_count(frame) for frame in mask) == 1
+    # Where the object outsizes any blob (axes up to 7 px), what is kept is the object.
+    shown = exact.object_mask.sum(axis=(1, 2)) > 400
+    assert shown.sum() > 10
+    assert not (demo.object_mask[shown] & ~exact.object_mask[shown]).any()
+
+
+def _blob_count(frame: np.ndarray) -> int:
+    return cv2.connectedComponents(frame.astype(np.uint8), connectivity=8)[0] - 1
 
 
 def test_round_trip_through_the_file_format(tmp_path):

@@ -9,7 +9,7 @@
 
 Bounding-box annotations (Something-Else) are in :mod:`warpskill.data.box_annotations`.
 
-Masks pass through :func:`warpskill.data.masks.clean_masks` (largest blob, no specks). The
+Masks pass through :func:`warpskill.data.masks.clean_masks` (the largest blob per frame). The
 contact signal is given, read from a detections CSV, or estimated from the masks
 (:mod:`warpskill.data.contact`).
 """
@@ -59,7 +59,8 @@ def read_label_images(
             Detections and estimates go through :func:`warpskill.data.contact.filter_contact`.
         camera_K: (3, 3) intrinsics [px]; None for the default of docs/formats.md.
         action: action name, if known.
-        min_area_fraction: speck threshold of :func:`warpskill.data.masks.clean_masks`.
+        min_area_fraction: speck threshold of :func:`warpskill.data.masks.clean_masks` (0, the
+            default, keeps every frame).
 
     Returns:
         The demonstration.

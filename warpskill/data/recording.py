@@ -85,7 +85,7 @@ def read_recording(
         frame: the annotated frame of ``polygons``, overriding the file's (0-based).
 
     Returns:
-        The demonstration (masks cleaned: largest blob, no specks) and the (N, H, W, 3)
+        The demonstration (masks cleaned: the largest blob per frame) and the (N, H, W, 3)
         uint8 RGB frames.
 
     Raises:

@@ -13,6 +13,7 @@ from warpskill.contract.camera import Intrinsics
 from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.reconstruction import FIELD_SHAPES
 from warpskill.data.box_annotations import something_else_demonstration
+from warpskill.data.masks import clean_masks
 from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.raycast import raycast_masks
 from warpskill.engine.simulation import simulate
@@ -38,7 +39,8 @@ from warpskill.synthetic.spoil import (
 )
 
 INPUTS = ("masks", "boxes")
-"""What a synthetic demonstration's masks are: the true silhouettes spoiled (``"masks"``), or
+"""What a synthetic demonstration's masks are: the true silhouettes spoiled, then cleaned as the
+readers clean a segmenter's (``"masks"``, :func:`~warpskill.data.masks.clean_masks`), or
 the ellipses inscribed in per-frame boxes of them, as the Something-Else reader makes them
 (``"boxes"``; contact from annotator-like phases, scenes with the real videos' situations)."""
 
@@ -111,7 +113,9 @@ def make_demonstration(
         image_size: (H, W) of the masks [px].
         fps: frame rate [1/s].
         duration: video length [s].
-        input: one of :data:`INPUTS`. ``"boxes"``: each channel's mask is the ellipse
+        input: one of :data:`INPUTS`. ``"masks"``: the true silhouettes spoiled by ``noise``
+            (jitter, spurious blobs, lost frames), then cleaned as the readers clean a
+            segmenter's masks. ``"boxes"``: each channel's mask is the ellipse
             inscribed in the box of its true visible silhouette (box edges jittered by up to
             ``noise.jitter`` px), rasterised by :func:`warpskill.data.box_annotations.box_masks`
             as for Something-Else; the contact is an annotator's action phase (from the
@@ -164,7 +168,7 @@ def make_demonstration(
         hand, obj, static = box_channels(masks, noise, rng)
     else:
         contact = noisy_contact(truth["grasped"] > 0.5, noise, rng)
-        hand, obj, static = noisy_channels(masks, noise, rng)
+        hand, obj, static = _cleaned(*noisy_channels(masks, noise, rng))
     return Demonstration.from_arrays(
         hand, obj, contact, fps, static_mask=static, camera_K=intrinsics.K, action=action, truth=truth
     )
@@ -179,6 +183,12 @@ def _annotated(boxes, contact, chosen, rng, fps: float, action: str, truth: dict
             boxes, contact = SPOILERS[name](boxes, contact, rng, image_size)
     demo, _ = something_else_demonstration(as_annotations(boxes, contact, action=action), image_size=image_size)
     return replace(demo, fps=fps, truth=_first_frames(truth, demo.num_frames))
+
+
+def _cleaned(hand: np.ndarray, obj: np.ndarray, static: np.ndarray | None):
+    """Spoiled masks as the readers hand a segmenter's to the optimiser (:func:`clean_masks`)."""
+    statics = None if static is None else np.stack([clean_masks(mask) for mask in static])
+    return clean_masks(hand), clean_masks(obj), statics
 
 
 def _first_frames(truth: dict, n: int) -> dict:
