@@ -10,8 +10,12 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+SPECK_AREA_FRACTION = 0.1
+"""A frame whose mask covers less than this fraction of the object's median visible area is a
+speck, when specks are dropped (:func:`drop_specks`)."""
+
 DEFAULT_MIN_AREA_FRACTION = 0.0
-"""The readers' speck threshold: 0 keeps every frame. An object going behind another shows as a
+"""The readers' speck threshold (:func:`clean_masks`): 0 keeps every frame. An object going behind another shows as a
 sliver a tenth of its usual area, which an area rule cannot tell from a speck; the largest blob
 alone placed the synthetic masks sets' objects and hands closer to the truth
 (docs/results-history.md)."""
@@ -37,7 +41,7 @@ def largest_component(masks: np.ndarray) -> np.ndarray:
     return out
 
 
-def drop_specks(masks: np.ndarray, min_fraction: float = DEFAULT_MIN_AREA_FRACTION) -> np.ndarray:
+def drop_specks(masks: np.ndarray, min_fraction: float = SPECK_AREA_FRACTION) -> np.ndarray:
     """Empty the frames whose mask is a speck: smaller than ``min_fraction`` of the median
     area over the frames where the object is visible.
 
