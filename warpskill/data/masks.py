@@ -15,10 +15,10 @@ SPECK_AREA_FRACTION = 0.1
 speck, when specks are dropped (:func:`drop_specks`)."""
 
 DEFAULT_MIN_AREA_FRACTION = 0.0
-"""The readers' speck threshold (:func:`clean_masks`): 0 keeps every frame. An object going behind another shows as a
-sliver a tenth of its usual area, which an area rule cannot tell from a speck; the largest blob
-alone placed the synthetic masks sets' objects and hands closer to the truth
-(docs/results-history.md)."""
+"""The readers' speck threshold (:func:`clean_masks`): 0 keeps every frame. An object going
+behind another shows as a sliver a tenth of its usual area, which an area rule cannot tell
+from a speck; the largest blob alone placed the synthetic masks sets' objects and hands
+closer to the truth (docs/results-history.md)."""
 
 
 def largest_component(masks: np.ndarray) -> np.ndarray:
