@@ -59,13 +59,16 @@ def test_read_polygons(tmp_path):
     square = [[10, 10], [30, 10], [30, 20], [10, 20]]
     path.write_text(json.dumps({"frame": 3, "hand": square, "object": [[40, 40], [60, 40], [50, 55]],
                                 "static": [[[0, 0], [5, 0], [0, 5]], [[70, 50], [80, 50], [80, 64], [70, 64]]]}))
-    frame, masks = read_polygons(path, (64, 80))
-    assert frame == 3 and list(masks) == ["hand", "object", "static_0", "static_1"]
+    frame, masks, noun = read_polygons(path, (64, 80))
+    assert frame == 3 and noun is None and list(masks) == ["hand", "object", "static_0", "static_1"]
     assert 200 <= int(masks["hand"].sum()) <= 231  # a 20 x 10 px rectangle, edges included
     assert masks["object"][45, 50] and masks["static_0"][1, 1] and masks["static_1"][60, 75]
     assert read_polygons(path, (64, 80), frame=7)[0] == 7
     path.write_text(json.dumps({"frame": 0, "hand": square, "object": square}))  # static may be left out
     assert list(read_polygons(path, (64, 80))[1]) == ["hand", "object"]
+    path.write_text(json.dumps({"frame": 0, "object": square, "object_noun": " marker "}))  # the hand to be found
+    outline = read_polygons(path, (64, 80))
+    assert list(outline.masks) == ["object"] and outline.object_noun == "marker"
 
 
 def test_read_labelme(tmp_path):
@@ -82,7 +85,7 @@ def test_read_labelme(tmp_path):
     assert polygons["hand"] == [[10, 10], [30, 10], [30, 20], [10, 20]]
     assert polygons["static"] == [[[70, 50], [80, 50], [80, 64]], [[0, 0], [5, 0], [0, 5]]]
     assert read_labelme(path, frame=2)["frame"] == 2
-    frame, masks = read_polygons(path, (64, 80))  # detected by its keys
+    frame, masks, _ = read_polygons(path, (64, 80))  # detected by its keys
     assert frame == 12 and list(masks) == ["hand", "object", "static_0", "static_1"]
     with pytest.raises(DemonstrationError, match="80 x 64 .* the video's frames are 60 x 50"):
         read_polygons(path, (50, 60))
@@ -102,6 +105,9 @@ SQUARE = [[0, 0], [9, 0], [9, 9], [0, 9]]
     ({"frame": 0, "hand": SQUARE, "object": [[3, 3], [3.2, 3], [3, 3.2]]}, "object: the polygon encloses 0.02 px\\^2, less than one pixel"),
     ({"shapes": [{"label": "foot", "points": SQUARE}]}, "shapes\\[0\\]: label 'foot'"),
     ({"shapes": [{"label": "hand", "points": SQUARE}], "imagePath": "a7.png"}, "no shape labelled 'object'"),
+    ({"shapes": [{"label": "hand", "points": SQUARE}] * 2 + [{"label": "object", "points": SQUARE}],
+      "imagePath": "a7.png"}, "2 shapes labelled 'hand'"),
+    ({"frame": 0, "object": SQUARE, "object_noun": 3}, "object_noun: expected a non-empty string"),
     ({"shapes": [{"label": "hand", "points": SQUARE}, {"label": "object", "points": SQUARE}], "imagePath": "x.png"},
      "no frame index"),
     ({"shapes": [{"label": "hand", "points": SQUARE, "shape_type": "circle"}]}, "shape_type 'circle'"),

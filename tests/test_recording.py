@@ -201,7 +201,7 @@ def test_labelme_polygons_with_a_frame_option(recording, tmp_path):
     ]}
     path = tmp_path / "labelme.json"
     path.write_text(json.dumps(labelme))
-    demo, frames = read_recording(recording["video"], polygons=path, action="pick_up", frame=k)
+    demo, frames, _ = read_recording(recording["video"], polygons=path, action="pick_up", frame=k)
     assert np.array_equal(demo.hand_mask[k], truth.hand_mask[k]) or _iou(demo.hand_mask[k], truth.hand_mask[k]) > 0.9
     assert demo.num_static == 1 and frames.shape == (truth.num_frames, 96, 128, 3)
     # without --frame, the digits of imagePath: frame 3
@@ -258,7 +258,7 @@ def test_detections_are_filtered(recording, tmp_path):
     rows = [f"{k},{int(truth.contact[k])},0.9" for k in range(truth.num_frames) if k != on[3]]  # one frame unseen
     rows.append(f"{on[3]},0,0.1")  # ... and one low-score detection of it, ignored
     detections.write_text("frame,in_contact,score\n" + "\n".join(rows) + "\n")
-    demo, _ = read_recording(recording["video"], polygons=recording["polygons"], detections=detections, action="pick_up")
+    demo, *_ = read_recording(recording["video"], polygons=recording["polygons"], detections=detections, action="pick_up")
     assert demo.contact[on[3]] and demo.contact[on[0] : on[-1] + 1].all() and not demo.contact[: on[0] - 1].any()
 
 

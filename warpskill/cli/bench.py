@@ -95,6 +95,15 @@ def register(commands) -> None:
     add_optimize_options(second)
     _add_baseline_options(second)
     second.set_defaults(run=_bench_second_opinion)
+    footage = bench.add_parser("footage", help="real clips outlined on one frame, the hand found: masks against "
+                                                "people's boxes (extra video)")
+    footage.add_argument("folder", type=Path, help="a folder in the real-footage format (frames/<id>/, annotations.json)")
+    footage.add_argument("--clips", nargs="*", help="a subset of the clip ids (default: all)")
+    footage.add_argument("-o", "--out", type=Path, default=Path("warpskill-out/footage"),
+                         help="output folder of outcomes.json / .csv")
+    footage.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_baseline_options(footage)
+    footage.set_defaults(run=_bench_footage)
     flips = bench.add_parser("flips", help="the cases that flipped between two outcome tables or output folders")
     flips.add_argument("baseline", type=Path, help="outcomes.json, or a benchmark's output folder")
     flips.add_argument("current", type=Path, help="outcomes.json, or a benchmark's output folder")
@@ -191,6 +200,14 @@ def _bench_second_opinion(args) -> int:
                                   exit_view=args.exit_view, noise=args.noise, tools=args.tools,
                                   baseline=args.baseline, save_baseline=args.save_baseline)
     return 0 if result is not None else 1
+
+
+def _bench_footage(args) -> int:
+    from warpskill.bench.footage import bench_footage
+
+    scores = bench_footage(args.folder, args.out, clips=args.clips, baseline=args.baseline,
+                           save_baseline=args.save_baseline, quiet=args.quiet)
+    return 0 if scores else 2
 
 
 def _bench_flips(args) -> int:

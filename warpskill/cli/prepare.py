@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
+
 from warpskill.data import contact_sheet, read_recording
 
 __all__ = ["add_recording_options", "prepare", "register"]
@@ -23,14 +25,17 @@ def register(commands) -> None:
 
 def add_recording_options(parser: argparse.ArgumentParser) -> None:
     """The video, exactly one mask source, the contact source, the action, fps and intrinsics."""
-    parser.add_argument("video", type=Path, help="the video file (anything OpenCV reads: .mp4, .avi, ...)")
+    parser.add_argument("video", type=Path,
+                        help="the video file (anything OpenCV reads: .mp4, .avi, ...) or numbered frames "
+                             "(frames/%%04d.jpg, 12 fps unless --fps)")
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--masks", type=Path, metavar="DIR",
                         help="per-object mask folders DIR/hand/, DIR/object/, DIR/static*/ (one image per frame)")
     source.add_argument("--labels", type=Path, metavar="DIR",
                         help="label images, one per frame (1 hand, 2 object, 3, 4, ... static; DAVIS palette or indices)")
     source.add_argument("--polygons", type=Path, metavar="FRAME.json",
-                        help="polygons on one frame (docs/formats.md, or LabelMe), propagated through the video")
+                        help="polygons on one frame (docs/formats.md, or LabelMe), propagated through the video; "
+                             "without a hand polygon the hand is found in every frame (extra video)")
     source.add_argument("--boxes", type=Path, metavar="ANNOTS.json", help="Something-Else box annotations")
     parser.add_argument("--video-id", help="the video's id in --boxes (default: the file's only video)")
     parser.add_argument("--frame", type=int, help="the frame --polygons was drawn on (0-based; overrides the file's)")
@@ -50,7 +55,7 @@ def prepare(args, demo_path: Path, sheet_path: Path):
     Returns:
         The demonstration and the video's frames.
     """
-    demo, frames = read_recording(
+    demo, frames, landmarks = read_recording(
         args.video, masks=args.masks, labels=args.labels, polygons=args.polygons, boxes=args.boxes,
         video_id=args.video_id, contact=args.contact, detections=args.detections, action=args.action,
         fps=args.fps, intrinsics=args.intrinsics, frame=args.frame,
@@ -62,7 +67,10 @@ def prepare(args, demo_path: Path, sheet_path: Path):
     source = next(name for name in ("masks", "labels", "polygons", "boxes") if getattr(args, name) is not None)
     print(f"demonstration: {demo_path} ({demo.action}, {demo.num_frames} frames of {w} x {h} at {demo.fps:g} fps, "
           f"masks from --{source}, {demo.num_static} static; contact in {len(on)} frames, {on[0]}..{on[-1]})")
-    print(f"contact sheet: {contact_sheet(demo, frames, sheet_path)}")
+    if landmarks is not None:
+        seen = np.isfinite(landmarks[:, 0, 0])
+        print(f"hand: found in {int(seen.sum())} of {demo.num_frames} frames (MediaPipe's hand landmarker, followed)")
+    print(f"contact sheet: {contact_sheet(demo, frames, sheet_path, landmarks)}")
     return demo, frames
 
 

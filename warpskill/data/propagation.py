@@ -30,6 +30,7 @@ from __future__ import annotations
 import json
 import os
 import re
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -50,24 +51,40 @@ EXTENDED_LABELS = ("hand",)
 """Labels whose mask is extended beyond the image border it touches on the annotated frame."""
 
 
-POLYGON_KEYS = ("frame", "hand", "object", "static")
-"""Keys of the polygon file (``static`` may be left out: no static objects)."""
+POLYGON_KEYS = ("frame", "hand", "object", "static", "object_noun")
+"""Keys of the polygon file (``hand`` left out: the hand is found in every frame;
+``static`` left out: no static objects; ``object_noun`` optional)."""
+
+
+class Outline(NamedTuple):
+    """The polygons drawn on one frame, as masks.
+
+    Attributes:
+        frame: the annotated frame's 0-based index.
+        masks: label -> (H, W) bool mask in front-to-back order: ``hand`` (when outlined),
+            ``object``, ``static_0``, ``static_1``, ...
+        object_noun: what the manipulated object is (``"marker"``), or None.
+    """
+
+    frame: int
+    masks: dict[str, np.ndarray]
+    object_noun: str | None = None
 
 BORDER_SLACK_PX = 1.0
 """How far [px] a polygon's point may lie outside the image (a click on its edge)."""
 
 
-def read_polygons(
-    path: str | os.PathLike, image_size: tuple[int, int], *, frame: int | None = None
-) -> tuple[int, dict[str, np.ndarray]]:
+def read_polygons(path: str | os.PathLike, image_size: tuple[int, int], *, frame: int | None = None) -> Outline:
     """Read the polygons drawn on one frame, as masks.
 
     The file is JSON, either the polygon file of ``docs/formats.md``::
 
-        {"frame": k, "hand": [[x, y], ...], "object": [[x, y], ...], "static": [[[x, y], ...], ...]}
+        {"frame": k, "hand": [[x, y], ...], "object": [[x, y], ...], "static": [[[x, y], ...], ...],
+         "object_noun": "marker"}
 
-    with k the 0-based frame index, one polygon for the hand, one for the manipulated
-    object and a list of polygons, one per static object (possibly empty), in pixel
+    with k the 0-based frame index, one polygon for the hand (optional: without it the
+    hand is found in every frame), one for the manipulated object, a list of polygons, one
+    per static object (possibly empty), and optionally the object's noun, in pixel
     coordinates of the video's frames (continuous, (0, 0) the top-left corner of the
     image); or a LabelMe file (detected by its ``shapes`` key; :func:`read_labelme`).
 
@@ -78,8 +95,7 @@ def read_polygons(
             without digits in their image name need it).
 
     Returns:
-        The frame index and label -> (H, W) bool mask, in front-to-back order: ``hand``,
-        ``object``, ``static_0``, ``static_1``, ...
+        The outline: the frame index, the masks and the object's noun.
 
     Raises:
         DemonstrationError: naming the file and the key, for a malformed file, a polygon
@@ -96,7 +112,7 @@ def read_polygons(
             polygons["frame"] = _frame_index(frame, path)
     height, width = image_size
     masks = {}
-    named = [("hand", polygons["hand"]), ("object", polygons["object"])]
+    named = [("hand", polygons["hand"])] * (polygons["hand"] is not None) + [("object", polygons["object"])]
     named += [(f"static_{k}", points) for k, points in enumerate(polygons["static"])]
     for label, points in named:
         key = label if label in ("hand", "object") else f"static[{label.split('_')[1]}]"
@@ -114,7 +130,7 @@ def read_polygons(
         mask = np.zeros(image_size, dtype=np.uint8)
         cv2.fillPoly(mask, [np.round((points - 0.5) * 16).astype(np.int32)], 1, shift=4)
         masks[label] = mask.astype(bool)
-    return polygons["frame"], masks
+    return Outline(polygons["frame"], masks, polygons.get("object_noun"))
 
 
 def read_labelme(path: str | os.PathLike, *, frame: int | None = None) -> dict:
@@ -122,7 +138,8 @@ def read_labelme(path: str | os.PathLike, *, frame: int | None = None) -> dict:
 
     LabelMe writes ``{"shapes": [{"label": ..., "points": [[x, y], ...], "shape_type":
     "polygon"}, ...], "imagePath": ..., "imageHeight": ..., "imageWidth": ...}``. Shapes
-    labelled ``hand`` and ``object`` (one each) are the hand and the manipulated object;
+    labelled ``hand`` (at most one; none: the hand is found) and ``object`` (one) are the
+    hand and the manipulated object;
     every shape whose label starts with ``static`` is one static object (ordered by label,
     then as in the file). ``polygon`` and ``rectangle`` shapes are read.
 
@@ -132,7 +149,7 @@ def read_labelme(path: str | os.PathLike, *, frame: int | None = None) -> dict:
             ``imagePath`` file name (``frame_0012.png`` -> 12).
 
     Returns:
-        ``{"frame": k, "hand": [[x, y], ...], "object": [[x, y], ...], "static": [[[x, y], ...], ...]}``.
+        ``{"frame": k, "hand": [[x, y], ...] or None, "object": [[x, y], ...], "static": [[[x, y], ...], ...]}``.
 
     Raises:
         DemonstrationError: naming the file and the shape, for a malformed file, an
@@ -175,16 +192,22 @@ def _check_polygons(data, path) -> dict:
     if not isinstance(data, dict):
         raise DemonstrationError(f"{path}: expected an object with the keys {', '.join(POLYGON_KEYS)}")
     unknown = sorted(set(data) - set(POLYGON_KEYS))
-    missing = [key for key in ("frame", "hand", "object") if key not in data]
+    missing = [key for key in ("frame", "object") if key not in data]
     if unknown or missing:
         problems = [f"missing {', '.join(missing)}"] * bool(missing) + [f"unknown {', '.join(unknown)}"] * bool(unknown)
-        raise DemonstrationError(f"{path}: expected the keys frame, hand, object and static; {'; '.join(problems)}")
+        raise DemonstrationError(
+            f"{path}: expected the keys frame, object and optionally hand, static, object_noun; {'; '.join(problems)}"
+        )
     static = data.get("static", [])
     if not isinstance(static, list):
         raise DemonstrationError(f"{path}: static: expected a list of polygons, one per static object")
+    noun = data.get("object_noun")
+    if noun is not None and (not isinstance(noun, str) or not noun.strip()):
+        raise DemonstrationError(f"{path}: object_noun: expected a non-empty string, got {noun!r}")
     return {
         "frame": _frame_index(data["frame"], path),
-        "hand": _points(data["hand"], path, "hand"),
+        "hand": _points(data["hand"], path, "hand") if "hand" in data else None,
+        "object_noun": noun.strip() if noun else None,
         "object": _points(data["object"], path, "object"),
         "static": [_points(points, path, f"static[{k}]") for k, points in enumerate(static)],
     }
@@ -220,7 +243,7 @@ def _labelme_polygons(data, path, frame: int | None, image_size: tuple[int, int]
             raise DemonstrationError(f"{path}: {where}: shape_type {kind!r}: expected polygon or rectangle")
         found[role].append((label, _points(points, path, f"{where} ({label})")))
     for role in ("hand", "object"):
-        if len(found[role]) != 1:
+        if len(found[role]) != 1 and not (role == "hand" and not found[role]):
             problem = "no shape" if not found[role] else f"{len(found[role])} shapes"
             raise DemonstrationError(f"{path}: {problem} labelled {role!r}: expected exactly one polygon")
     if frame is None:
@@ -234,7 +257,7 @@ def _labelme_polygons(data, path, frame: int | None, image_size: tuple[int, int]
     statics = sorted(found["static"], key=lambda item: item[0])  # stable: same labels keep the file's order
     return {
         "frame": _frame_index(frame, path),
-        "hand": found["hand"][0][1],
+        "hand": found["hand"][0][1] if found["hand"] else None,
         "object": found["object"][0][1],
         "static": [points for _, points in statics],
     }

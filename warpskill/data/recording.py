@@ -17,6 +17,7 @@ import csv
 import json
 import os
 from pathlib import Path
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -25,9 +26,10 @@ from warpskill.contract.actions import check_action
 from warpskill.contract.demonstration import Demonstration, DemonstrationError
 from warpskill.data.box_annotations import SomethingElseVideo, something_else_demonstration
 from warpskill.data.contact import estimate_contact, read_detections
+from warpskill.data.footage import footage_masks
 from warpskill.data.masks import clean_masks
 from warpskill.data.propagation import propagate_masks, read_polygons
-from warpskill.data.readers import read_masks, read_video
+from warpskill.data.readers import is_image_sequence, read_masks, read_video
 
 SOURCES = ("masks", "labels", "polygons", "boxes")
 """The mask sources of :func:`prepare_recording`; exactly one is given."""
@@ -38,11 +40,34 @@ SHEET_TILES = 12
 COLOURS = {"hand": (230, 60, 60), "object": (40, 200, 60), "static": (60, 120, 240)}
 """RGB of each role on the contact sheet."""
 
+IMAGE_SEQUENCE_FPS = 12.0
+"""Frame rate [1/s] taken for numbered image files without ``fps``: that of the frame
+folders of Something-Something v2, the phone clips these come from most often."""
+
+HAND_BONES = ((0, 1), (1, 2), (2, 3), (3, 4), (0, 5), (5, 6), (6, 7), (7, 8), (5, 9), (9, 10), (10, 11),
+              (11, 12), (9, 13), (13, 14), (14, 15), (15, 16), (13, 17), (0, 17), (17, 18), (18, 19), (19, 20))
+"""Pairs of hand landmarks joined when the found hand is drawn (MediaPipe's 21-point hand)."""
+
+
+class Recording(NamedTuple):
+    """A recording read as a demonstration.
+
+    Attributes:
+        demo: the demonstration.
+        frames: (N, H, W, 3) uint8 RGB video frames.
+        landmarks: (N, 21, 2) the found hand's landmarks (x, y) [px], NaN rows where none
+            is seen; None when the hand was not found but given.
+    """
+
+    demo: Demonstration
+    frames: np.ndarray
+    landmarks: np.ndarray | None = None
+
 
 def prepare_recording(video: str | os.PathLike, **sources) -> Demonstration:
     """A video and one source of masks as a demonstration: :func:`read_recording` (same
     keyword arguments) without the video's frames."""
-    return read_recording(video, **sources)[0]
+    return read_recording(video, **sources).demo
 
 
 def read_recording(
@@ -59,11 +84,12 @@ def read_recording(
     fps: float | None = None,
     intrinsics: tuple[float, float, float, float] | None = None,
     frame: int | None = None,
-) -> tuple[Demonstration, np.ndarray]:
+) -> Recording:
     """A video and one source of masks as a demonstration, and the video's frames.
 
     Args:
-        video: a video file OpenCV can read; the masks are at its frames' size.
+        video: a video file OpenCV can read, or numbered image files (``frames/%04d.jpg``);
+            the masks are at its frames' size.
         masks: a folder of per-object mask folders (``hand/``, ``object/``, ``static*/``;
             :func:`warpskill.data.read_mask_folders`), one image per video frame.
         labels: a folder of label images, one per video frame
@@ -71,7 +97,9 @@ def read_recording(
         polygons: the polygons of one annotated frame (the polygon file of
             ``docs/formats.md`` or LabelMe; :func:`warpskill.data.read_polygons`),
             propagated through the video by optical flow
-            (:func:`warpskill.data.propagate_masks`).
+            (:func:`warpskill.data.propagate_masks`); without a hand polygon the hand is
+            found in every frame, the objects followed and the contact read off the hand's
+            landmarks (:func:`warpskill.data.footage.footage_masks`, extra ``video``).
         boxes: a Something-Else box annotations JSON (``{video_id: [frame entries]}``);
             each box becomes the ellipse inscribed in it.
         video_id: the video's id in ``boxes``; None when the file holds one video.
@@ -79,21 +107,23 @@ def read_recording(
         detections: a contact detections CSV (:func:`warpskill.data.read_detections`),
             filtered as in the paper. With neither, contact is estimated from the masks.
         action: the action shown, one of :data:`warpskill.ACTIONS`.
-        fps: frame rate [1/s]; None takes the video's.
+        fps: frame rate [1/s]; None takes the video's (image files:
+            :data:`IMAGE_SEQUENCE_FPS`).
         intrinsics: (fx, fy, cx, cy) [px] of the video's frames; None for the default of
             ``docs/formats.md`` (80 x 60 deg field of view).
         frame: the annotated frame of ``polygons``, overriding the file's (0-based).
 
     Returns:
-        The demonstration (masks cleaned: the largest blob per frame) and the (N, H, W, 3)
-        uint8 RGB frames.
+        The demonstration (masks cleaned: the largest blob per frame; the object's noun from
+        the polygon file's ``object_noun``), the frames and the found hand's landmarks.
 
     Raises:
         DemonstrationError: naming the file (or option) and the problem: not exactly one
             mask source, an unknown action, a video OpenCV cannot decode or without a frame
             rate, masks of another size or frame count, polygons outside the image or on
-            a frame the video lacks, no boxes for ``video_id``, a contact file of the wrong
-            length, a contact signal that is never on.
+            a frame the video lacks, no hand found in any frame, an object lost in every
+            frame, no boxes for ``video_id``, a contact file of the wrong length, a contact
+            signal that is never on.
         FileNotFoundError: a file or folder does not exist.
     """
     given = {name: value for name, value in zip(SOURCES, (masks, labels, polygons, boxes)) if value is not None}
@@ -111,21 +141,27 @@ def read_recording(
     except ValueError as exc:
         raise DemonstrationError(f"action: {exc}") from None
     frames, video_fps = read_video(video)
-    fps = video_fps if fps is None else fps
+    if fps is None:
+        fps = IMAGE_SEQUENCE_FPS if is_image_sequence(video) else video_fps
     if not fps or not np.isfinite(fps) or fps <= 0:
         raise DemonstrationError(f"{video}: declares no frame rate; give fps" if not fps else f"fps: must be > 0, got {fps}")
     camera_K = _camera_matrix(intrinsics)
     n, h, w = frames.shape[:3]
     [(source, where)] = given.items()
+    found, noun = None, None
     if source in ("masks", "labels"):
         if source == "masks" and not (Path(where) / "hand").is_dir():
             raise FileNotFoundError(f"{where}: no hand/ folder (--masks reads hand/, object/, static*/ folders)")
         hand, obj, static = read_masks(where)
     elif source == "polygons":
-        key_frame, key_masks = read_polygons(where, (h, w), frame=frame)
+        key_frame, key_masks, noun = read_polygons(where, (h, w), frame=frame)
         if key_frame >= n:
             raise DemonstrationError(f"{where}: frame {key_frame} is not in {video}, which has frames 0..{n - 1}")
-        propagated = propagate_masks(frames, key_frame, key_masks)
+        if "hand" in key_masks:
+            propagated = propagate_masks(frames, key_frame, key_masks)
+        else:
+            found = _found(video, frames, key_frame, key_masks)
+            propagated = {"hand": found.hand, **found.objects}
         hand, obj = propagated.pop("hand"), propagated.pop("object")
         static = list(propagated.values())
     else:
@@ -142,6 +178,10 @@ def read_recording(
             raise DemonstrationError(f"{where}: the {name} mask is empty in every frame")
     if contact is not None:
         signal = read_contact(contact, n)
+    elif found is not None and detections is None:
+        signal = found.contact
+        if not signal.any():
+            raise DemonstrationError(f"{video}: no fingertip touches the object in any frame; give a contact file")
     else:
         signal = estimate_contact(hand, obj, detections=None if detections is None else read_detections(detections, n))
         if not signal.any():
@@ -149,11 +189,20 @@ def read_recording(
             raise DemonstrationError(f"{origin}: the contact signal is never on; give a contact file")
     try:
         demo = Demonstration.from_arrays(
-            hand, obj, signal, fps, static_mask=np.stack(static) if static else None, camera_K=camera_K, action=action
+            hand, obj, signal, fps, static_mask=np.stack(static) if static else None, camera_K=camera_K, action=action,
+            object_noun=noun,
         )
     except DemonstrationError as exc:
         raise DemonstrationError(f"{contact if contact is not None else where}: {exc}") from None
-    return demo, frames
+    return Recording(demo, frames, None if found is None else found.landmarks)
+
+
+def _found(video, frames: np.ndarray, key_frame: int, key_masks: dict[str, np.ndarray]):
+    """:func:`~warpskill.data.footage.footage_masks`, its errors naming the video."""
+    try:
+        return footage_masks(frames, key_frame, key_masks)
+    except DemonstrationError as exc:
+        raise DemonstrationError(f"{video}: {exc}") from None
 
 
 def read_contact(path: str | os.PathLike, num_frames: int) -> np.ndarray:
@@ -188,7 +237,9 @@ def read_contact(path: str | os.PathLike, num_frames: int) -> np.ndarray:
     return np.array(values, dtype=bool)
 
 
-def contact_sheet(demo: Demonstration, frames: np.ndarray | None, path: str | os.PathLike) -> Path:
+def contact_sheet(
+    demo: Demonstration, frames: np.ndarray | None, path: str | os.PathLike, landmarks: np.ndarray | None = None
+) -> Path:
     """Draw the masks over sampled frames with each frame's contact flag, and a strip of the
     contact signal of every frame; write it as a PNG (OpenCV).
 
@@ -196,6 +247,8 @@ def contact_sheet(demo: Demonstration, frames: np.ndarray | None, path: str | os
         demo: the demonstration.
         frames: its (N, H, W, 3) uint8 RGB video frames, or None to draw on grey.
         path: the PNG to write.
+        landmarks: (N, 21, 2) the found hand's landmarks [px] (NaN rows where none), drawn
+            as a skeleton; None draws none.
 
     Returns:
         ``path``.
@@ -220,6 +273,8 @@ def contact_sheet(demo: Demonstration, frames: np.ndarray | None, path: str | os
     sheet = np.full((rows * (tile_h + header + gap) + gap + strip_h, width, 3), 255, dtype=np.uint8)
     for index, k in enumerate(picks):
         tile = _overlay(demo, frames, int(k))
+        if landmarks is not None:
+            _skeleton(tile, landmarks[k])
         tile = cv2.resize(tile, (tile_w, tile_h), interpolation=cv2.INTER_NEAREST if scale > 1 else cv2.INTER_AREA)
         y = gap + (index // columns) * (tile_h + header + gap)
         x = gap + (index % columns) * (tile_w + gap)
@@ -247,6 +302,17 @@ def _overlay(demo: Demonstration, frames: np.ndarray, k: int) -> np.ndarray:
         contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
         cv2.drawContours(tile, contours, -1, COLOURS[role], 1)
     return tile
+
+
+def _skeleton(tile: np.ndarray, points: np.ndarray) -> None:
+    """The found hand's landmarks (21, 2) [px] drawn on ``tile`` in place (nothing for NaN)."""
+    if not np.isfinite(points).all():
+        return
+    pixel = np.round(points * 16 - 8).astype(np.int32)
+    for a, b in HAND_BONES:
+        cv2.line(tile, tuple(pixel[a]), tuple(pixel[b]), (255, 255, 255), 1, cv2.LINE_AA, shift=4)
+    for point in pixel:
+        cv2.circle(tile, tuple(point), 2 * 16, (255, 230, 0), -1, cv2.LINE_AA, shift=4)
 
 
 def _strip(sheet: np.ndarray, demo: Demonstration, picks: np.ndarray, top: int, gap: int) -> None:

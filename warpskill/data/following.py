@@ -1,0 +1,287 @@
+"""Object masks for a whole video from an outline on one frame, robust to the hand.
+
+The user outlines the manipulated object and the static objects on one frame (polygons or
+rectangles, :func:`warpskill.data.propagation.read_polygons`); :func:`follow_objects`
+carries each outline to every frame, forward and backward from that frame. Unlike
+:func:`warpskill.data.propagation.propagate_masks`, which moves a mask with the dense flow
+inside it and cleans it each frame (so errors accumulate in the shape), each label here is
+one *similarity transform* (rotation, scale, shift) of its key-frame outline per frame:
+
+- the motion from one frame to the next is fitted (RANSAC) to sparse corners tracked
+  inside the label's visible part (pyramidal Lucas-Kanade, kept only where tracking back
+  returns to the start), away from the hand: pixels of the occluder (the hand's masks,
+  found independently) never move an object;
+- a label with too few tracked corners (hidden behind the hand, out of view, or without
+  texture) moves with the background (the camera's motion, fitted the same way to corners
+  outside every label and the hand), so a static object follows a moving camera and a
+  covered object keeps its place in the scene;
+- each frame the label's key-frame appearance is searched for around the predicted place
+  (normalised cross-correlation of the outline's inner part, at the predicted scale); a
+  confident match elsewhere moves the label there (drift, fast jumps, re-entry);
+- the key-frame outline itself is warped, so a part that leaves the view or hides behind
+  the hand comes back whole.
+
+Masks are visible masks: the occluder is in front of everything, then the labels in the
+order given (object first, then static objects).
+
+Limits: a label moves rigidly (a similarity), so deforming objects are followed only by
+their box; an object whose appearance changes (turned over, transparent) is followed by
+its corners alone; a grasped object fully hidden in the hand stays with the background.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+MAX_CORNERS = 150
+"""Most corners tracked inside one label (or the background) from one frame to the next."""
+
+CORNER_QUALITY = 0.005
+"""Corner quality (fraction of the strongest corner's response) for a tracked corner."""
+
+CORNER_SPACING_PX = 3
+"""Least distance [px] between two tracked corners."""
+
+EDGE_PX = 2
+"""Corners this close [px] to a label's edge or the occluder are not tracked (they mix
+the label with what surrounds it)."""
+
+LK_WINDOW_PX = 15
+"""Side [px] of the Lucas-Kanade window."""
+
+LK_LEVELS = 4
+"""Pyramid levels of the Lucas-Kanade tracker (motions up to about 2**levels windows)."""
+
+ROUND_TRIP_PX = 1.0
+"""Largest distance [px] between a corner and its position tracked forward then back."""
+
+RANSAC_PX = 1.5
+"""RANSAC inlier threshold [px] of the fitted similarity."""
+
+MIN_CORNERS = 6
+"""Fewest inlier corners whose motion moves a label; fewer: it moves with the background."""
+
+MAX_SCALE_STEP = 0.08
+"""Largest change of a label's scale from one frame to the next (relative)."""
+
+TEMPLATE_INSET = 0.15
+"""Fraction of the outline's box cut from each side for the appearance template (the
+rim of a hurried outline is background)."""
+
+MIN_TEMPLATE_PX = 8
+"""Smallest template side [px]; a smaller label is not re-found by appearance."""
+
+SEARCH_MARGIN = 0.5
+"""The appearance is searched within this fraction of the label's box size (and at least
+:data:`MIN_SEARCH_PX`) around its predicted place."""
+
+MIN_SEARCH_PX = 12
+"""Least search radius [px] around the predicted place."""
+
+MATCH_SCORE = 0.7
+"""Normalised cross-correlation from which a match elsewhere is trusted."""
+
+MATCH_GAIN = 0.15
+"""How much better than at the predicted place a match must score to move the label."""
+
+MIN_VISIBLE = 0.5
+"""Fraction of a label's in-view template area that must be free of the occluder to
+search for its appearance."""
+
+
+def follow_objects(
+    frames: np.ndarray,
+    key_frame: int,
+    key_masks: dict[str, np.ndarray],
+    *,
+    occluder: np.ndarray | None = None,
+) -> dict[str, np.ndarray]:
+    """Carry the key frame's object masks to every frame (see the module docstring).
+
+    Args:
+        frames: (N, H, W, 3) uint8 RGB video frames.
+        key_frame: 0-based index of the outlined frame.
+        key_masks: label -> (H, W) bool mask on the key frame, front to back
+            (``object``, ``static_0``, ``static_1``, ...).
+        occluder: optional (N, H, W) bool, the hand's masks, in front of every label.
+
+    Returns:
+        label -> (N, H, W) bool visible masks: each label's outline moved to each frame,
+        minus the occluder and the labels before it. On the key frame, the key mask minus
+        the occluder and earlier labels.
+
+    Raises:
+        ValueError: frames not (N, H, W, 3) uint8, ``key_frame`` out of range, no key masks,
+            a key mask not (H, W) bool or empty, or an occluder not (N, H, W) bool.
+    """
+    frames, key_frame, labels, key, occluder = _checked(frames, key_frame, key_masks, occluder)
+    n, h, w = frames.shape[:3]
+    gray = np.stack([cv2.cvtColor(frame, cv2.COLOR_RGB2GRAY) for frame in frames])
+    templates = [_template(gray[key_frame], mask) for mask in key]
+    transforms = np.zeros((len(labels), n, 2, 3))
+    transforms[:, key_frame] = np.eye(2, 3)
+    for step in (1, -1):
+        for k in range(key_frame + step, n if step > 0 else -1, step):
+            before = transforms[:, k - step]
+            whole = np.stack([_warp(mask, t) for mask, t in zip(key, before)])
+            background = _background_motion(gray[k - step], gray[k], whole, occluder[k - step])
+            hidden = occluder[k - step].copy()
+            for i in range(len(labels)):
+                visible = whole[i] & ~hidden
+                hidden |= whole[i]
+                motion = _label_motion(gray[k - step], gray[k], visible, occluder[k - step])
+                t = _compose(motion if motion is not None else background, before[i])
+                if templates[i] is not None:
+                    t = _refound(gray[k], t, templates[i], occluder[k])
+                transforms[i, k] = t
+    out = {}
+    hidden = occluder.copy()
+    for i, label in enumerate(labels):
+        whole = np.stack([_warp(key[i], transforms[i, k]) for k in range(n)])
+        out[label] = whole & ~hidden
+        hidden |= whole
+    return out
+
+
+def _checked(frames, key_frame, key_masks, occluder):
+    """The inputs, checked: frames, key frame, labels, (L, H, W) key masks, (N, H, W) occluder."""
+    frames = np.asarray(frames)
+    if frames.ndim != 4 or frames.shape[3] != 3 or frames.dtype != np.uint8:
+        raise ValueError(f"frames: expected (N, H, W, 3) uint8, got {frames.dtype} of shape {frames.shape}")
+    n, h, w = frames.shape[:3]
+    if isinstance(key_frame, bool) or not isinstance(key_frame, (int, np.integer)) or not 0 <= key_frame < n:
+        raise ValueError(f"key_frame: expected an integer in 0..{n - 1}, got {key_frame!r}")
+    if not key_masks:
+        raise ValueError("key_masks: expected at least one label -> (H, W) bool mask")
+    labels = list(key_masks)
+    key = []
+    for label in labels:
+        mask = np.asarray(key_masks[label])
+        if mask.shape != (h, w) or mask.dtype != bool:
+            raise ValueError(f"key_masks[{label!r}]: expected ({h}, {w}) bool, got {mask.dtype} of shape {mask.shape}")
+        if not mask.any():
+            raise ValueError(f"key_masks[{label!r}]: empty mask on the key frame")
+        key.append(mask)
+    if occluder is None:
+        occluder = np.zeros((n, h, w), dtype=bool)
+    occluder = np.asarray(occluder)
+    if occluder.shape != (n, h, w) or occluder.dtype != bool:
+        raise ValueError(f"occluder: expected ({n}, {h}, {w}) bool, got {occluder.dtype} of shape {occluder.shape}")
+    return frames, int(key_frame), labels, np.stack(key), occluder
+
+
+def _warp(mask: np.ndarray, transform: np.ndarray) -> np.ndarray:
+    """(H, W) bool key mask moved by a 2 x 3 transform, clipped to the image."""
+    h, w = mask.shape
+    moved = cv2.warpAffine(mask.astype(np.uint8) * 255, transform.astype(np.float64), (w, h), flags=cv2.INTER_LINEAR)
+    return moved >= 128
+
+
+def _compose(step: np.ndarray, transform: np.ndarray) -> np.ndarray:
+    """The 2 x 3 transform ``step`` applied after ``transform``."""
+    return step[:, :2] @ transform + np.hstack([np.zeros((2, 2)), step[:, 2:]])
+
+
+def _tracked(before: np.ndarray, after: np.ndarray, where: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Corners inside ``where`` (H, W uint8) of ``before`` and their places in ``after``,
+    those that track back to within :data:`ROUND_TRIP_PX`: two (M, 2) float32 arrays [px]."""
+    corners = cv2.goodFeaturesToTrack(before, MAX_CORNERS, CORNER_QUALITY, CORNER_SPACING_PX, mask=where, blockSize=5)
+    if corners is None or len(corners) < 2 * MIN_CORNERS:  # a small or thin part: a grid of its pixels too
+        ys, xs = np.nonzero(where[::CORNER_SPACING_PX, ::CORNER_SPACING_PX])
+        pick = np.linspace(0, len(xs) - 1, min(len(xs), MAX_CORNERS)).astype(int)
+        grid = np.stack([xs[pick], ys[pick]], axis=1).astype(np.float32)[:, None] * CORNER_SPACING_PX
+        corners = grid if corners is None else np.concatenate([corners, grid])
+    if len(corners) < MIN_CORNERS:
+        return np.zeros((0, 2), np.float32), np.zeros((0, 2), np.float32)
+    params = dict(winSize=(LK_WINDOW_PX, LK_WINDOW_PX), maxLevel=LK_LEVELS)
+    ahead, ok, _ = cv2.calcOpticalFlowPyrLK(before, after, corners, None, **params)
+    back, ok_back, _ = cv2.calcOpticalFlowPyrLK(after, before, ahead, None, **params)
+    good = (ok[:, 0] == 1) & (ok_back[:, 0] == 1) & (np.linalg.norm(back - corners, axis=2)[:, 0] < ROUND_TRIP_PX)
+    return corners[good, 0], ahead[good, 0]
+
+
+def _similarity(source: np.ndarray, target: np.ndarray) -> np.ndarray | None:
+    """Similarity (2 x 3) fitted with RANSAC to corner pairs; None for too few inliers."""
+    if len(source) < MIN_CORNERS:
+        return None
+    transform, inliers = cv2.estimateAffinePartial2D(source, target, method=cv2.RANSAC, ransacReprojThreshold=RANSAC_PX)
+    if transform is None or inliers.sum() < MIN_CORNERS:
+        return None
+    scale = np.sqrt(abs(np.linalg.det(transform[:, :2])))
+    if abs(scale - 1) > MAX_SCALE_STEP:  # rescale about the inliers' centre
+        centre = source[inliers[:, 0] == 1].mean(axis=0)
+        linear = transform[:, :2] * (np.clip(scale, 1 - MAX_SCALE_STEP, 1 + MAX_SCALE_STEP) / scale)
+        moved = transform[:, :2] @ centre + transform[:, 2]
+        transform = np.hstack([linear, (moved - linear @ centre)[:, None]])
+    return transform
+
+
+def _inner(mask: np.ndarray, occluder: np.ndarray) -> np.ndarray:
+    """uint8 mask of ``mask`` at least :data:`EDGE_PX` from its edge and from ``occluder``."""
+    size = 2 * EDGE_PX + 1
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
+    inner = cv2.erode(mask.astype(np.uint8), kernel, borderType=cv2.BORDER_REPLICATE)
+    return inner & ~cv2.dilate(occluder.astype(np.uint8), kernel) & 1
+
+
+def _label_motion(before, after, visible, occluder) -> np.ndarray | None:
+    """The similarity moving a label's ``visible`` part from ``before`` to ``after`` (grey
+    frames), from corners away from the occluder; None when too few are tracked."""
+    where = _inner(visible, occluder)
+    if where.sum() < MIN_CORNERS:
+        return None
+    return _similarity(*_tracked(before, after, where * 255))
+
+
+def _background_motion(before, after, whole, occluder) -> np.ndarray:
+    """The camera's motion: the similarity fitted to corners outside every label and the
+    occluder; identity when too few are tracked."""
+    motion = _label_motion(before, after, ~(whole.any(axis=0) | occluder), occluder)
+    return np.eye(2, 3) if motion is None else motion
+
+
+def _template(gray: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The key-frame appearance of a label: the inner part of its box (grey, float32) and
+    that part's centre in key-frame px; None when too small."""
+    ys, xs = np.nonzero(mask)
+    x0, x1, y0, y1 = xs.min(), xs.max() + 1, ys.min(), ys.max() + 1
+    dx, dy = int(TEMPLATE_INSET * (x1 - x0)), int(TEMPLATE_INSET * (y1 - y0))
+    x0, x1, y0, y1 = x0 + dx, x1 - dx, y0 + dy, y1 - dy
+    if min(x1 - x0, y1 - y0) < MIN_TEMPLATE_PX:
+        return None
+    return gray[y0:y1, x0:x1].astype(np.float32), np.array([(x0 + x1) / 2, (y0 + y1) / 2])
+
+
+def _refound(gray: np.ndarray, transform: np.ndarray, template, occluder: np.ndarray) -> np.ndarray:
+    """``transform`` shifted to where the label's key-frame appearance matches best near
+    its predicted place in ``gray``, if that match is confident (:data:`MATCH_SCORE`) and
+    clearly better than at the predicted place (:data:`MATCH_GAIN`)."""
+    patch, centre = template
+    scale = np.sqrt(abs(np.linalg.det(transform[:, :2])))
+    th, tw = max(int(round(patch.shape[0] * scale)), 1), max(int(round(patch.shape[1] * scale)), 1)
+    h, w = gray.shape
+    if min(th, tw) < MIN_TEMPLATE_PX or th >= h or tw >= w:
+        return transform
+    cx, cy = transform[:, :2] @ centre + transform[:, 2]
+    px, py = int(round(cx - tw / 2)), int(round(cy - th / 2))  # predicted top-left corner
+    inside = 0 <= px and 0 <= py and px + tw <= w and py + th <= h
+    if inside and occluder[py : py + th, px : px + tw].mean() > 1 - MIN_VISIBLE:
+        return transform
+    rx, ry = max(int(SEARCH_MARGIN * tw), MIN_SEARCH_PX), max(int(SEARCH_MARGIN * th), MIN_SEARCH_PX)
+    # the search window, at least one template large inside the image (a label out of view
+    # is searched for along the border it left by)
+    x0, y0 = int(np.clip(px - rx, 0, w - tw)), int(np.clip(py - ry, 0, h - th))
+    x1, y1 = int(np.clip(px + tw + rx, x0 + tw, w)), int(np.clip(py + th + ry, y0 + th, h))
+    patch = cv2.resize(patch, (tw, th), interpolation=cv2.INTER_AREA)
+    scores = cv2.matchTemplate(gray[y0:y1, x0:x1].astype(np.float32), patch, cv2.TM_CCOEFF_NORMED)
+    scores = np.nan_to_num(scores, nan=-1.0)
+    best = np.unravel_index(np.argmax(scores), scores.shape)
+    if not inside and occluder[best[0] + y0 : best[0] + y0 + th, best[1] + x0 : best[1] + x0 + tw].mean() > 1 - MIN_VISIBLE:
+        return transform
+    here = scores[py - y0, px - x0] if inside else -1.0
+    if scores[best] < MATCH_SCORE or scores[best] < here + MATCH_GAIN:
+        return transform
+    shifted = transform.copy()
+    shifted[:, 2] += (best[1] + x0 - px, best[0] + y0 - py)
+    return shifted
