@@ -45,7 +45,7 @@ def test_the_model_hand_is_the_cylinder_at_the_scale_the_palm_gives():
     assert not masks[1].any()  # no landmarks, no hand
     rows = masks[0].sum(axis=1)
     band = rows[rows > 0]
-    assert np.median(band) == pytest.approx(breadth * MODEL_HAND_WIDTH / HAND_BREADTH, abs=1.5)
+    assert np.median(band) == pytest.approx(breadth * MODEL_HAND_WIDTH / HAND_BREADTH, abs=2)  # edges drawn
     tip_row = np.flatnonzero(rows)[0]
     assert abs(tip_row - points[[4, 8, 12, 16, 20], 1].min()) <= 1.5  # from the farthest fingertip ...
     assert rows[-1] > 0  # ... through the wrist, on along the forearm to the border

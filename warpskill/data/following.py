@@ -62,6 +62,10 @@ RANSAC_PX = 1.5
 MIN_CORNERS = 6
 """Fewest inlier corners whose motion moves a label; fewer: it moves with the background."""
 
+SIMILARITY_GAIN = 1.2
+"""A similarity moves a label only when it fits this many times as many corners as a
+plain shift (rotation and scale from a few close corners are mostly noise)."""
+
 MAX_SCALE_STEP = 0.08
 """Largest change of a label's scale from one frame to the next (relative)."""
 
@@ -205,9 +209,14 @@ def _similarity(source: np.ndarray, target: np.ndarray) -> np.ndarray | None:
     """Similarity (2 x 3) fitted with RANSAC to corner pairs; None for too few inliers."""
     if len(source) < MIN_CORNERS:
         return None
+    shift = np.median(target - source, axis=0)
+    shifted = np.linalg.norm(target - source - shift, axis=1) < RANSAC_PX
     transform, inliers = cv2.estimateAffinePartial2D(source, target, method=cv2.RANSAC, ransacReprojThreshold=RANSAC_PX)
-    if transform is None or inliers.sum() < MIN_CORNERS:
-        return None
+    if transform is None or inliers.sum() < SIMILARITY_GAIN * shifted.sum():  # a shift explains it as well
+        if shifted.sum() < MIN_CORNERS:
+            return None
+        shift = (target - source)[shifted].mean(axis=0)
+        return np.hstack([np.eye(2), shift[:, None]])
     scale = np.sqrt(abs(np.linalg.det(transform[:, :2])))
     if abs(scale - 1) > MAX_SCALE_STEP:  # rescale about the inliers' centre
         centre = source[inliers[:, 0] == 1].mean(axis=0)
