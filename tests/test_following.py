@@ -47,7 +47,8 @@ def test_square_followed_through_a_fast_jump_and_under_the_hand():
     frames, masks = _render(_texture(rng, (h, w)), [(_texture(rng, (20, 20)), square), (_texture(rng, (30, 60)), hand)], n, h, w)
     covered = [k for k in range(n) if masks[0, k].sum() < 0.8 * 400]
     assert len(covered) >= 6  # the hand really hides part of it for several frames
-    key = 8
+    key = 2  # outlined whole, before the hand comes
+    assert masks[0, key].sum() == 400
     out = follow_objects(frames, key, {"object": masks[0, key]}, occluder=masks[1])
     assert set(out) == {"object"} and out["object"].shape == (n, h, w) and out["object"].dtype == bool
     assert not (out["object"] & masks[1]).any()  # never over the occluder

@@ -57,6 +57,8 @@ def overlay_frames(
         base = base.repeat(s, axis=1).repeat(s, axis=2)
         labels = labels.repeat(s, axis=1).repeat(s, axis=2)
     frames = _paint(base, labels)
+    if demo is not None and background is not None:
+        _outline_masks(frames, demo, s)
     contact = None if demo is None else demo.contact
     with_masks = demo is not None and background is None
     for k, frame in enumerate(frames):
@@ -129,6 +131,19 @@ def _paint(base: np.ndarray, labels: np.ndarray) -> np.ndarray:
     out = base.copy()
     out[hit] = np.round(base[hit] * (1.0 - alpha) + colors[labels[hit]] * alpha).astype(np.uint8)
     return out
+
+
+def _outline_masks(frames: np.ndarray, demo: Demonstration, s: int) -> None:
+    """Outline the demonstration's masks on the frames (enlarged ``s`` times) in place, in each
+    role's colour: on real frames, what the reconstruction was fitted to."""
+    roles = [(STATIC_COLOR, mask) for mask in demo.static_mask]
+    roles += [(OBJECT_COLOR, demo.object_mask), (HAND_COLOR, demo.hand_mask)]
+    for color, masks in roles:
+        for frame, mask in zip(frames, masks):
+            if mask.any():
+                big = mask.astype(np.uint8).repeat(s, axis=0).repeat(s, axis=1)
+                contours, _ = cv2.findContours(big, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+                cv2.drawContours(frame, contours, -1, color, 1, cv2.LINE_AA)
 
 
 def _annotate(frame: np.ndarray, recon: Reconstruction, k: int, contact: bool | None, *, with_masks: bool) -> None:

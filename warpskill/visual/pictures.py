@@ -67,7 +67,8 @@ def save_pictures(
             to draw the reconstruction alone.
         out_dir: folder to write into; created if missing.
         background: optional (N, H, W, 3) uint8 RGB video frames drawn under the
-            reconstruction instead of the demonstration's masks.
+            reconstruction instead of the demonstration's masks (which are then outlined
+            on them in their roles' colours).
         frames_video: ``"gif"`` (``overlay.gif``), ``"mp4"`` (``overlay.mp4``) or None
             (no overlay).
         render_scale: ray cast at this fraction of the image size (then enlarged to it);
