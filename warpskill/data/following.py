@@ -66,6 +66,10 @@ SIMILARITY_GAIN = 1.2
 """A similarity moves a label only when it fits this many times as many corners as a
 plain shift (rotation and scale from a few close corners are mostly noise)."""
 
+IN_VIEW = 0.9
+"""A label touching the image border with less than this fraction of its key-frame area
+in view is leaving it: without tracked corners it keeps its last own motion."""
+
 MAX_SCALE_STEP = 0.08
 """Largest change of a label's scale from one frame to the next (relative)."""
 
@@ -126,6 +130,7 @@ def follow_objects(
     transforms = np.zeros((len(labels), n, 2, 3))
     transforms[:, key_frame] = np.eye(2, 3)
     for step in (1, -1):
+        last = [None] * len(labels)  # each label's own last motion
         for k in range(key_frame + step, n if step > 0 else -1, step):
             before = transforms[:, k - step]
             whole = np.stack([_warp(mask, t) for mask, t in zip(key, before)])
@@ -135,6 +140,10 @@ def follow_objects(
                 visible = whole[i] & ~hidden
                 hidden |= whole[i]
                 motion = _label_motion(gray[k - step], gray[k], visible, occluder[k - step])
+                if motion is None and last[i] is not None and _leaving(whole[i], key[i]):
+                    motion = last[i]  # on its way out of view, where corners are lost: keeps going
+                else:
+                    last[i] = motion
                 t = _compose(motion if motion is not None else background, before[i])
                 if templates[i] is not None:
                     t = _refound(gray[k], t, templates[i], occluder[k])
@@ -180,6 +189,13 @@ def _warp(mask: np.ndarray, transform: np.ndarray) -> np.ndarray:
     h, w = mask.shape
     moved = cv2.warpAffine(mask.astype(np.uint8) * 255, transform.astype(np.float64), (w, h), flags=cv2.INTER_LINEAR)
     return moved >= 128
+
+
+def _leaving(whole: np.ndarray, key: np.ndarray) -> bool:
+    """Whether a label's moved mask ``whole`` is partly out of view: it touches the image's
+    border and is less than :data:`IN_VIEW` of its key-frame area."""
+    touches = whole[0].any() or whole[-1].any() or whole[:, 0].any() or whole[:, -1].any()
+    return bool(touches and whole.sum() < IN_VIEW * key.sum())
 
 
 def _compose(step: np.ndarray, transform: np.ndarray) -> np.ndarray:
