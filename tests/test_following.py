@@ -6,10 +6,11 @@ import cv2
 import numpy as np
 import pytest
 
-from warpskill.data.following import follow_objects
+from warpskill.data.following import follow_objects, follow_outlines
 
 FOOTAGE = Path(__file__).resolve().parents[2] / "shared" / "data" / "real_footage"
 MIN_IOU = 0.7  # per frame, mask vs truth (the followers' masks are within 1-2 px of the truth)
+COASTING_IOU = 0.6  # whole mask vs truth while partly hidden (it coasts; measured 0.68 after 10 frames)
 ON_BOX = 0.85  # fraction of boxed real frames with box IoU >= 0.5 (measured: 862 100 %, 151201 94 %)
 
 
@@ -52,8 +53,13 @@ def test_square_followed_through_a_fast_jump_and_under_the_hand():
     out = follow_objects(frames, key, {"object": masks[0, key]}, occluder=masks[1])
     assert set(out) == {"object"} and out["object"].shape == (n, h, w) and out["object"].dtype == bool
     assert not (out["object"] & masks[1]).any()  # never over the occluder
-    ious = [_iou(out["object"][k], masks[0, k]) for k in range(n)]
-    assert min(ious) > MIN_IOU, np.round(ious, 2)
+    whole = follow_outlines(frames, key, {"object": masks[0, key]}, occluder=masks[1])["object"]
+    truth = np.zeros_like(whole)  # the square's whole extent, hidden part included
+    for k, (y, x) in enumerate(np.round(square).astype(int)):
+        truth[k, y : y + 20, x : x + 20] = True
+    ious = [_iou(whole[k], truth[k]) for k in range(n)]
+    assert min(ious[k] for k in covered) > COASTING_IOU, np.round(ious, 2)  # it goes on behind the hand ...
+    assert min(ious[k] for k in range(n) if k not in covered) > MIN_IOU, np.round(ious, 2)  # ... and after the jump
 
 
 def test_square_leaves_the_view_and_comes_back():

@@ -62,6 +62,22 @@ RANSAC_PX = 1.5
 MIN_CORNERS = 6
 """Fewest inlier corners whose motion moves a label; fewer: it moves with the background."""
 
+COVERED = 0.3
+"""Share of a label hidden by the hand from which, its own corners lost, it keeps its last
+motion (it was moving: it goes on moving behind the hand) rather than the background's."""
+
+COAST_FRAMES = 3
+"""A label coasting (hidden or leaving the view) shifts by the mean of its last this many own shifts."""
+
+ALIGN_MARGIN_PX = 4
+"""Extra px around a part (beyond its shift) in which its pixels are aligned with the next frame."""
+
+ALIGN_MAX_PX = 3.0
+"""Most an alignment may change the corners' shift [px]; more is taken for a failed alignment."""
+
+ALIGN_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01)
+"""When the alignment stops: 30 iterations or a step under 0.01 px."""
+
 SIMILARITY_GAIN = 1.2
 """A similarity moves a label only when it fits this many times as many corners as a
 plain shift (rotation and scale from a few close corners are mostly noise)."""
@@ -84,10 +100,17 @@ SEARCH_MARGIN = 0.5
 """The appearance is searched within this fraction of the label's box size (and at least
 :data:`MIN_SEARCH_PX`) around its predicted place."""
 
+LOST_SCORE = 0.5
+"""Normalised cross-correlation at the predicted place below which the label counts as lost
+there (its corners followed something else): its appearance is then searched for farther."""
+
+LOST_SEARCH_MARGIN = 2.0
+"""Search radius around the predicted place of a lost label, in its box sizes."""
+
 MIN_SEARCH_PX = 12
 """Least search radius [px] around the predicted place."""
 
-MATCH_SCORE = 0.7
+MATCH_SCORE = 0.9
 """Normalised cross-correlation from which a match elsewhere is trusted."""
 
 MATCH_GAIN = 0.15
@@ -105,7 +128,39 @@ def follow_objects(
     *,
     occluder: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
-    """Carry the key frame's object masks to every frame (see the module docstring).
+    """Carry the key frame's object masks to every frame: :func:`follow_outlines`, then
+    :func:`visible_masks` (same arguments and errors).
+
+    Returns:
+        label -> (N, H, W) bool visible masks: each label's outline moved to each frame,
+        minus the occluder and the labels before it.
+    """
+    occluder = None if occluder is None else np.asarray(occluder)
+    return visible_masks(follow_outlines(frames, key_frame, key_masks, occluder=occluder), occluder)
+
+
+def visible_masks(whole: dict[str, np.ndarray], occluder: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """What is seen of whole masks (label -> (N, H, W) bool, front to back) behind the
+    occluder ((N, H, W) bool, in front of every label, or None): each pixel to the first
+    that covers it."""
+    out = {}
+    hidden = None if occluder is None else occluder.astype(bool).copy()
+    for label, masks in whole.items():
+        out[label] = masks.copy() if hidden is None else masks & ~hidden
+        hidden = masks.copy() if hidden is None else hidden | masks
+    return out
+
+
+def follow_outlines(
+    frames: np.ndarray,
+    key_frame: int,
+    key_masks: dict[str, np.ndarray],
+    *,
+    occluder: np.ndarray | None = None,
+    carried: dict[str, np.ndarray] | None = None,
+) -> dict[str, np.ndarray]:
+    """Carry the key frame's object outlines to every frame whole, hidden parts included
+    (see the module docstring).
 
     Args:
         frames: (N, H, W, 3) uint8 RGB video frames.
@@ -113,11 +168,13 @@ def follow_objects(
         key_masks: label -> (H, W) bool mask on the key frame, front to back
             (``object``, ``static_0``, ``static_1``, ...).
         occluder: optional (N, H, W) bool, the hand's masks, in front of every label.
+        carried: label -> (N,) bool, the frames in which the hand holds that label (the
+            contact): there a label with too few corners of its own moves with the hand
+            (corners inside the occluder), not with the background.
 
     Returns:
-        label -> (N, H, W) bool visible masks: each label's outline moved to each frame,
-        minus the occluder and the labels before it. On the key frame, the key mask minus
-        the occluder and earlier labels.
+        label -> (N, H, W) bool whole masks: each label's outline moved to each frame (the
+        key mask itself on the key frame), parts behind the hand or other labels included.
 
     Raises:
         ValueError: frames not (N, H, W, 3) uint8, ``key_frame`` out of range, no key masks,
@@ -125,36 +182,41 @@ def follow_objects(
     """
     frames, key_frame, labels, key, occluder = _checked(frames, key_frame, key_masks, occluder)
     n, h, w = frames.shape[:3]
+    held = np.zeros((len(labels), n), dtype=bool)
+    for label, frames_held in (carried or {}).items():
+        if label not in labels or np.shape(frames_held) != (n,):
+            raise ValueError(f"carried[{label!r}]: expected a label of key_masks and (N,) = ({n},) bool frames")
+        held[labels.index(label)] = np.asarray(frames_held, dtype=bool)
     gray = np.stack([cv2.cvtColor(frame, cv2.COLOR_RGB2GRAY) for frame in frames])
     templates = [_template(gray[key_frame], mask) for mask in key]
     transforms = np.zeros((len(labels), n, 2, 3))
     transforms[:, key_frame] = np.eye(2, 3)
     for step in (1, -1):
-        last = [None] * len(labels)  # each label's own last motion
+        recent = [[] for _ in labels]  # each label's last own shifts, for coasting
         for k in range(key_frame + step, n if step > 0 else -1, step):
             before = transforms[:, k - step]
             whole = np.stack([_warp(mask, t) for mask, t in zip(key, before)])
             background = _background_motion(gray[k - step], gray[k], whole, occluder[k - step])
+            hand = None  # the occluder's own motion, fitted when a held label needs it
             hidden = occluder[k - step].copy()
             for i in range(len(labels)):
                 visible = whole[i] & ~hidden
                 hidden |= whole[i]
-                motion = _label_motion(gray[k - step], gray[k], visible, occluder[k - step])
-                if motion is None and last[i] is not None and _leaving(whole[i], key[i]):
-                    motion = last[i]  # on its way out of view, where corners are lost: keeps going
-                else:
-                    last[i] = motion
+                motion = _label_motion(gray[k - step], gray[k], visible, occluder[k - step] | occluder[k])
+                if motion is not None:
+                    recent[i] = (recent[i] + [motion[:, 2]])[-COAST_FRAMES:]
+                elif held[i, k - step] and held[i, k]:  # held: moves with the hand
+                    hand = _hand_motion(gray[k - step], gray[k], occluder[k - step]) if hand is None else hand
+                    motion = hand if hand is not False else None
+                if motion is None and recent[i] and (
+                    _leaving(whole[i], key[i]) or _covered(whole[i], occluder[k - step])
+                ):  # hidden behind the hand or on its way out of view: keeps going
+                    motion = np.hstack([np.eye(2), np.mean(recent[i], axis=0)[:, None]])
                 t = _compose(motion if motion is not None else background, before[i])
                 if templates[i] is not None:
                     t = _refound(gray[k], t, templates[i], occluder[k])
                 transforms[i, k] = t
-    out = {}
-    hidden = occluder.copy()
-    for i, label in enumerate(labels):
-        whole = np.stack([_warp(key[i], transforms[i, k]) for k in range(n)])
-        out[label] = whole & ~hidden
-        hidden |= whole
-    return out
+    return {label: np.stack([_warp(key[i], transforms[i, k]) for k in range(n)]) for i, label in enumerate(labels)}
 
 
 def _checked(frames, key_frame, key_masks, occluder):
@@ -196,6 +258,11 @@ def _leaving(whole: np.ndarray, key: np.ndarray) -> bool:
     border and is less than :data:`IN_VIEW` of its key-frame area."""
     touches = whole[0].any() or whole[-1].any() or whole[:, 0].any() or whole[:, -1].any()
     return bool(touches and whole.sum() < IN_VIEW * key.sum())
+
+
+def _covered(whole: np.ndarray, occluder: np.ndarray) -> bool:
+    """Whether the occluder hides more than :data:`COVERED` of a whole mask."""
+    return bool((whole & occluder).sum() > COVERED * whole.sum())
 
 
 def _compose(step: np.ndarray, transform: np.ndarray) -> np.ndarray:
@@ -243,20 +310,48 @@ def _similarity(source: np.ndarray, target: np.ndarray) -> np.ndarray | None:
 
 
 def _inner(mask: np.ndarray, occluder: np.ndarray) -> np.ndarray:
-    """uint8 mask of ``mask`` at least :data:`EDGE_PX` from its edge and from ``occluder``."""
+    """uint8 mask of ``mask`` at least :data:`EDGE_PX` from its edge and from ``occluder``,
+    and half a tracking window from the image border."""
     size = 2 * EDGE_PX + 1
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
     inner = cv2.erode(mask.astype(np.uint8), kernel, borderType=cv2.BORDER_REPLICATE)
+    rim = LK_WINDOW_PX // 2  # a window reaching past the image border holds a corner back
+    inner[:rim], inner[-rim:], inner[:, :rim], inner[:, -rim:] = 0, 0, 0, 0
     return inner & ~cv2.dilate(occluder.astype(np.uint8), kernel) & 1
 
 
 def _label_motion(before, after, visible, occluder) -> np.ndarray | None:
     """The similarity moving a label's ``visible`` part from ``before`` to ``after`` (grey
-    frames), from corners away from the occluder; None when too few are tracked."""
+    frames), from corners away from the occluder, a plain shift then aligned on the part's
+    own pixels (:func:`_aligned`); None when too few are tracked."""
     where = _inner(visible, occluder)
     if where.sum() < MIN_CORNERS:
         return None
-    return _similarity(*_tracked(before, after, where * 255))
+    motion = _similarity(*_tracked(before, after, where * 255))
+    if motion is None or not np.allclose(motion[:, :2], np.eye(2)):
+        return motion
+    return _aligned(before, after, where, motion)
+
+
+def _aligned(before, after, where, motion) -> np.ndarray:
+    """A shift (2 x 3) refined by aligning the pixels of ``where`` in ``before`` with
+    ``after`` (OpenCV's ECC, translation): corners' windows reach past a small part's edge
+    into the background, which holds their flow back; ECC sees the part's pixels alone.
+    ``motion`` itself where the alignment fails or moves more than :data:`ALIGN_MAX_PX`."""
+    ys, xs = np.nonzero(where)
+    margin = int(np.ceil(np.abs(motion[:, 2]).max())) + ALIGN_MARGIN_PX
+    h, w = where.shape
+    y0, y1 = max(ys.min() - margin, 0), min(ys.max() + 1 + margin, h)
+    x0, x1 = max(xs.min() - margin, 0), min(xs.max() + 1 + margin, w)
+    warp = motion.astype(np.float32).copy()
+    try:
+        _, warp = cv2.findTransformECC(before[y0:y1, x0:x1], after[y0:y1, x0:x1], warp, cv2.MOTION_TRANSLATION,
+                                       ALIGN_CRITERIA, where[y0:y1, x0:x1].astype(np.uint8), 1)
+    except cv2.error:  # too little texture: the corners' shift stands
+        return motion
+    if np.abs(warp[:, 2] - motion[:, 2]).max() > ALIGN_MAX_PX:
+        return motion
+    return np.hstack([np.eye(2), warp[:, 2:].astype(float)])
 
 
 def _background_motion(before, after, whole, occluder) -> np.ndarray:
@@ -264,6 +359,13 @@ def _background_motion(before, after, whole, occluder) -> np.ndarray:
     occluder; identity when too few are tracked."""
     motion = _label_motion(before, after, ~(whole.any(axis=0) | occluder), occluder)
     return np.eye(2, 3) if motion is None else motion
+
+
+def _hand_motion(before, after, occluder) -> np.ndarray | bool:
+    """The hand's motion: the similarity fitted to corners inside the occluder; False when
+    too few are tracked."""
+    motion = _label_motion(before, after, occluder, np.zeros_like(occluder))
+    return False if motion is None else motion
 
 
 def _template(gray: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -276,6 +378,12 @@ def _template(gray: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarra
     if min(x1 - x0, y1 - y0) < MIN_TEMPLATE_PX:
         return None
     return gray[y0:y1, x0:x1].astype(np.float32), np.array([(x0 + x1) / 2, (y0 + y1) / 2])
+
+
+def _match(window: np.ndarray, patch: np.ndarray) -> float:
+    """Normalised cross-correlation of a same-sized grey window and patch (-1 where flat)."""
+    score = cv2.matchTemplate(window.astype(np.float32), patch, cv2.TM_CCOEFF_NORMED)[0, 0]
+    return float(np.nan_to_num(score, nan=-1.0))
 
 
 def _refound(gray: np.ndarray, transform: np.ndarray, template, occluder: np.ndarray) -> np.ndarray:
@@ -293,18 +401,19 @@ def _refound(gray: np.ndarray, transform: np.ndarray, template, occluder: np.nda
     inside = 0 <= px and 0 <= py and px + tw <= w and py + th <= h
     if inside and occluder[py : py + th, px : px + tw].mean() > 1 - MIN_VISIBLE:
         return transform
-    rx, ry = max(int(SEARCH_MARGIN * tw), MIN_SEARCH_PX), max(int(SEARCH_MARGIN * th), MIN_SEARCH_PX)
+    patch = cv2.resize(patch, (tw, th), interpolation=cv2.INTER_AREA)
+    here = _match(gray[py : py + th, px : px + tw], patch) if inside else -1.0
+    margin = SEARCH_MARGIN if here >= LOST_SCORE else LOST_SEARCH_MARGIN  # lost: looks farther
+    rx, ry = max(int(margin * tw), MIN_SEARCH_PX), max(int(margin * th), MIN_SEARCH_PX)
     # the search window, at least one template large inside the image (a label out of view
     # is searched for along the border it left by)
     x0, y0 = int(np.clip(px - rx, 0, w - tw)), int(np.clip(py - ry, 0, h - th))
     x1, y1 = int(np.clip(px + tw + rx, x0 + tw, w)), int(np.clip(py + th + ry, y0 + th, h))
-    patch = cv2.resize(patch, (tw, th), interpolation=cv2.INTER_AREA)
     scores = cv2.matchTemplate(gray[y0:y1, x0:x1].astype(np.float32), patch, cv2.TM_CCOEFF_NORMED)
     scores = np.nan_to_num(scores, nan=-1.0)
     best = np.unravel_index(np.argmax(scores), scores.shape)
     if not inside and occluder[best[0] + y0 : best[0] + y0 + th, best[1] + x0 : best[1] + x0 + tw].mean() > 1 - MIN_VISIBLE:
         return transform
-    here = scores[py - y0, px - x0] if inside else -1.0
     if scores[best] < MATCH_SCORE or scores[best] < here + MATCH_GAIN:
         return transform
     shifted = transform.copy()

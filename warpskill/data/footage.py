@@ -9,9 +9,12 @@ The user outlines the manipulated object and the static objects on one frame
    the hands' masks as known occluders (:func:`warpskill.data.following.follow_objects`);
 3. keeps the hand that touches the object where several are seen
    (:func:`warpskill.data.hands.choose_hand`);
-4. reads the contact from the landmarks: a fingertip on or at the object's mask
+4. reads the contact from the landmarks: a fingertip on or at the object's whole mask (its
+   part hidden by the hand included)
    (:func:`warpskill.data.contact.detections_from_landmarks`), filtered as the paper filters a
-   detector's output (:func:`warpskill.data.contact.filter_contact`).
+   detector's output (:func:`warpskill.data.contact.filter_contact`);
+5. follows the object again where that contact says the hand holds it: an object with too
+   few corners of its own then moves with the hand, not with the background.
 
 The hand as a ruler: the optimiser's hand is a cylinder of known width
 (:data:`MODEL_HAND_WIDTH`) and reads the scene's scale off the hand mask's apparent width
@@ -31,10 +34,10 @@ import dataclasses
 import cv2
 import numpy as np
 
-from warpskill.contract.demonstration import DemonstrationError
 from warpskill.contract.nouns import HAND_BREADTH
-from warpskill.data.contact import FINGERTIPS, KNUCKLES, detections_from_landmarks, filter_contact
-from warpskill.data.following import follow_objects
+from warpskill.data.contact import FINGERTIPS, detections_from_landmarks, filter_contact
+from warpskill.data.following import follow_outlines, visible_masks
+from warpskill.data.hands import _hand_size as hand_size
 from warpskill.data.hands import choose_hand, find_hands, hand_masks
 
 MODEL_HAND_WIDTH, MODEL_HAND_LENGTH = 0.08, 0.40
@@ -75,10 +78,10 @@ def footage_masks(frames: np.ndarray, key_frame: int, key_masks: dict[str, np.nd
         key_masks: ``object`` and ``static_k`` -> (H, W) bool masks on the outlined frame.
 
     Returns:
-        The masks, the chosen hand's landmarks and the contact.
+        The masks, the chosen hand's landmarks and the contact (all empty / NaN / off where
+        no hand is found: the caller decides whether that is an error).
 
     Raises:
-        DemonstrationError: no hand is found in any frame, or the object is lost in every frame.
         ImportError: MediaPipe is not installed (the ``video`` extra).
     """
     n, h, w = frames.shape[:3]
@@ -86,14 +89,13 @@ def footage_masks(frames: np.ndarray, key_frame: int, key_masks: dict[str, np.nd
     every_hand = np.zeros((n, h, w), dtype=bool)
     for landmarks in tracks.all_landmarks():
         every_hand |= hand_masks(landmarks, (h, w), forearm=True)
-    if not every_hand.any():
-        raise DemonstrationError(f"no hand found in any of the {n} frames; outline the hand on one frame (hand key)")
-    objects = follow_objects(frames, key_frame, key_masks, occluder=every_hand)
-    if not objects["object"].any():
-        raise DemonstrationError("the object was lost in every frame; outline it on a frame where it is well visible")
-    landmarks = choose_hand(tracks, objects["object"])
-    detections = detections_from_landmarks(landmarks, objects["object"])
-    contact = filter_contact(detections, objects["object"])
+    whole = follow_outlines(frames, key_frame, key_masks, occluder=every_hand)
+    landmarks = choose_hand(tracks, visible_masks(whole, every_hand)["object"])
+    contact = _contact(landmarks, whole["object"], visible_masks(whole, every_hand)["object"])
+    if contact.any():  # followed again: where held, the object moves with the hand
+        whole = follow_outlines(frames, key_frame, key_masks, occluder=every_hand, carried={"object": contact})
+        contact = _contact(landmarks, whole["object"], visible_masks(whole, every_hand)["object"])
+    objects = visible_masks(whole, every_hand)
     return FootageMasks(
         hand=model_hand_masks(landmarks, (h, w)),
         found_hand=hand_masks(landmarks, (h, w), forearm=False),
@@ -103,11 +105,19 @@ def footage_masks(frames: np.ndarray, key_frame: int, key_masks: dict[str, np.nd
     )
 
 
+def _contact(landmarks: np.ndarray, whole: np.ndarray, visible: np.ndarray) -> np.ndarray:
+    """(N,) bool: fingertips on or at the object's whole masks, through the paper's filter
+    (which reads the object's motion off its visible masks)."""
+    return filter_contact(detections_from_landmarks(landmarks, whole), visible)
+
+
 def model_hand_masks(landmarks: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
     """The optimiser's hand drawn along found hands: per frame a band as wide as the model
-    cylinder (:data:`MODEL_HAND_WIDTH`) at the scale the palm's breadth gives
-    (:data:`~warpskill.contract.nouns.HAND_BREADTH`), from the farthest fingertip along the
-    hand's axis (middle knuckle to wrist) on for the cylinder's length, or to the image border.
+    cylinder (:data:`MODEL_HAND_WIDTH`) at the scale the hand's apparent breadth gives
+    (:func:`warpskill.data.hands.hand_size`, an adult's
+    :data:`~warpskill.contract.nouns.HAND_BREADTH`), from the farthest fingertip along the
+    hand's axis (middle knuckle to wrist) on for the cylinder's length (at least past the
+    wrist), or to the image border.
 
     Args:
         landmarks: (N, 21, 2) landmarks (x, y) [px], NaN rows where no hand is seen.
@@ -126,14 +136,15 @@ def model_hand_masks(landmarks: np.ndarray, image_size: tuple[int, int]) -> np.n
             continue
         axis = points[WRIST] - points[MIDDLE_KNUCKLE]  # towards the arm
         length = float(np.linalg.norm(axis))
-        breadth = float(np.linalg.norm(points[KNUCKLES[0]] - points[KNUCKLES[1]]))
+        breadth = float(hand_size(points))
         if length <= 0 or breadth <= 0:
             continue
         axis /= length
         tip_along = min(float(((points[list(FINGERTIPS)] - points[WRIST]) @ axis).min()), 0.0)
         tip = points[WRIST] + tip_along * axis
         metre = breadth / HAND_BREADTH  # [px / m] at the hand
-        far = tip + min(MODEL_HAND_LENGTH * metre, float(np.hypot(h, w))) * axis
+        reach = max(MODEL_HAND_LENGTH * metre, -tip_along + length)  # at least past the wrist
+        far = tip + min(reach, float(np.hypot(h, w))) * axis
         width = max(MODEL_HAND_WIDTH * metre, 1.0)
         across = np.array([-axis[1], axis[0]]) * width / 2
         band = np.array([tip - across, tip + across, far + across, far - across])

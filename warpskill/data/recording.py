@@ -198,11 +198,19 @@ def read_recording(
 
 
 def _found(video, frames: np.ndarray, key_frame: int, key_masks: dict[str, np.ndarray]):
-    """:func:`~warpskill.data.footage.footage_masks`, its errors naming the video."""
-    try:
-        return footage_masks(frames, key_frame, key_masks)
-    except DemonstrationError as exc:
-        raise DemonstrationError(f"{video}: {exc}") from None
+    """:func:`~warpskill.data.footage.footage_masks`; an error naming the video where no hand is
+    found in any frame or an outlined object is lost in every frame."""
+    found = footage_masks(frames, key_frame, key_masks)
+    if not np.isfinite(found.landmarks).any():
+        raise DemonstrationError(
+            f"{video}: no hand found in any of its {len(frames)} frames; outline the hand on one frame (hand key)"
+        )
+    lost = [label for label, masks in found.objects.items() if not masks.any()]
+    if lost:
+        raise DemonstrationError(
+            f"{video}: {', '.join(lost)} lost in every frame; outline it on a frame where it is well visible"
+        )
+    return found
 
 
 def read_contact(path: str | os.PathLike, num_frames: int) -> np.ndarray:
