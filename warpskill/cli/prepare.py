@@ -68,8 +68,10 @@ def prepare(args, demo_path: Path, sheet_path: Path):
     print(f"demonstration: {demo_path} ({demo.action}, {demo.num_frames} frames of {w} x {h} at {demo.fps:g} fps, "
           f"masks from --{source}, {demo.num_static} static; contact in {len(on)} frames, {on[0]}..{on[-1]})")
     if landmarks is not None:
-        seen = np.isfinite(landmarks[:, 0, 0])
-        print(f"hand: found in {int(seen.sum())} of {demo.num_frames} frames (MediaPipe's hand landmarker, followed)")
+        seen = demo.hand_mask.reshape(demo.num_frames, -1).any(axis=1)
+        marked = np.isfinite(landmarks[:, 0, 0])
+        print(f"hand: found in {int(seen.sum())} of {demo.num_frames} frames, its landmarks in {int(marked.sum())} "
+              f"(MediaPipe's hand landmarker, followed; colour and motion where it sees none)")
     print(f"contact sheet: {contact_sheet(demo, frames, sheet_path, landmarks)}")
     return demo, frames
 

