@@ -146,3 +146,45 @@ def test_a_real_clip_without_the_hand_outlined_becomes_a_demonstration(tmp_path)
     assert demo.contact.any()
     on_box = np.mean(box_ious(demo.object_mask, clip.boxes["object"])[np.isfinite(clip.boxes["object"][:, 0])] >= 0.5)
     assert on_box > 0.7
+
+
+def _cli(*argv):
+    import contextlib
+    import io
+
+    from warpskill.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        status = main([str(arg) for arg in argv])
+    return status, out.getvalue(), err.getvalue()
+
+
+def test_an_outline_outside_the_frame_is_refused_in_one_line(tmp_path):
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for k in range(1, 4):
+        cv2.imwrite(str(frames / f"{k:04d}.jpg"), np.full((40, 60, 3), 90, np.uint8))
+    outline = tmp_path / "outline.json"
+    outline.write_text(json.dumps({"frame": 1, "object": [[10, 10], [70, 10], [70, 30], [10, 30]]}))
+    status, _, err = _cli("prepare", frames / "%04d.jpg", "--polygons", outline, "--action", "pick_up",
+                          "-o", tmp_path / "out" / "demo.npz")
+    assert status == 2 and err.count("\n") == 1, err
+    assert f"{outline}: object: point [70, 10] lies outside the 60 x 40 (W x H) video frames" in err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.skipif(not FOOTAGE.is_dir(), reason="needs ../shared/data/real_footage")
+def test_a_clip_where_no_hand_is_ever_found_is_refused_and_nothing_is_written(tmp_path):
+    pytest.importorskip("mediapipe")
+    [clip] = read_footage(FOOTAGE, ["3201"])  # the camera moves away from a mouse; no hand
+    frame, masks = hurried_outline(clip)
+    x0, y0, x1, y1 = mask_box(masks["object"])
+    outline = tmp_path / "outline.json"
+    outline.write_text(json.dumps({"frame": frame, "object": [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]}))
+    out = tmp_path / "run"
+    status, _, err = _cli("run", FOOTAGE / "frames" / "3201" / "%04d.jpg", "--polygons", outline,
+                          "--action", "push_left_to_right", "-o", out)
+    assert status == 2 and err.count("\n") == 1, err
+    assert "no hand found in any of its 43 frames; outline the hand on one frame" in err
+    assert not out.exists() or not any(out.iterdir())

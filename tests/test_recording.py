@@ -232,10 +232,10 @@ def test_something_else_boxes(recording, tmp_path):
     demo = Demonstration.load(tmp_path / "demo.npz")
     assert demo.num_frames == truth.num_frames and _iou(demo.object_mask, truth.object_mask) > 0.5
     status, _, stderr = _cli("prepare", recording["video"], "--boxes", path, "--action", "pick_up", "-o", tmp_path / "x.npz")
-    assert status == 1 and f"{path}: holds 2 videos; give the video id" in stderr
+    assert status == 2 and f"{path}: holds 2 videos; give the video id" in stderr
     status, _, stderr = _cli("prepare", recording["video"], "--boxes", path, "--video-id", "7", "--action", "pick_up",
                              "-o", tmp_path / "x.npz")
-    assert status == 1 and "no boxes for video id '7'" in stderr
+    assert status == 2 and "no boxes for video id '7'" in stderr
 
 
 def test_contact_file_fps_and_intrinsics(recording, tmp_path):
@@ -337,7 +337,7 @@ def test_bad_input_is_one_clear_line(recording, existing, tmp_path, case, comman
         assert sorted(path.name for path in folder.iterdir()) == ["demonstration.npz"]
     else:
         status, stdout, stderr = _cli("prepare", *argv, "-o", out)
-    assert status == 1, stdout + stderr
+    assert status == (1 if case == "missing video" else 2), stdout + stderr  # 2: no demonstration in it
     assert stderr.startswith("warpskill: error: ") and message in stderr, stderr
     assert len(stderr.strip().splitlines()) == 1 and "Traceback" not in stderr
     assert out.read_bytes() == demo_bytes and out.with_suffix(".png").read_bytes() == sheet_bytes

@@ -34,6 +34,7 @@ import os
 import sys
 
 from warpskill.cli import bench, export, pipeline, prepare, robot, run, view
+from warpskill.cli.common import Refused
 from warpskill.contract import ResultsFolderError
 
 __all__ = ["main"]
@@ -52,6 +53,9 @@ def main(argv: list[str] | None = None) -> int:
     set_torch_threads(args.torch_threads)
     try:
         return args.run(args) or 0
+    except Refused as error:  # understood, cannot be done: one line, status 2
+        print(f"warpskill: error: {error}", file=sys.stderr)
+        return 2
     except (ValueError, FileNotFoundError, ResultsFolderError) as error:  # bad input, a full disk: one clear line
         print(f"warpskill: error: {error}", file=sys.stderr)
         return 1

@@ -25,6 +25,12 @@ OPTIMIZE_FLAGS = {"device": "--device", "iterations": "--iterations", "seed": "-
 """The options of :func:`add_optimize_options`: ``args`` attribute -> flag."""
 
 
+class Refused(Exception):
+    """Input a command understood but cannot carry out (a recording that gives no
+    demonstration: no hand found, an object lost, an outline outside the frame): the
+    command line prints its one line and exits with status 2."""
+
+
 def add_optimize_options(parser: argparse.ArgumentParser, *, known_names: bool = False) -> None:
     """The optimisation options every optimising command shares (one :class:`OptimizeOptions`,
     saved as the reconstruction's ``options``, docs/formats.md), and ``--quiet``.

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from warpskill.cli.common import Refused
+from warpskill.contract import DemonstrationError
 from warpskill.data import contact_sheet, read_recording
 
 __all__ = ["add_recording_options", "prepare", "register"]
@@ -54,12 +56,19 @@ def prepare(args, demo_path: Path, sheet_path: Path):
 
     Returns:
         The demonstration and the video's frames.
+
+    Raises:
+        Refused: the recording gives no demonstration (its one line names the file and why),
+            or finding the hand needs MediaPipe, which is not installed; nothing is written.
     """
-    demo, frames, landmarks = read_recording(
-        args.video, masks=args.masks, labels=args.labels, polygons=args.polygons, boxes=args.boxes,
-        video_id=args.video_id, contact=args.contact, detections=args.detections, action=args.action,
-        fps=args.fps, intrinsics=args.intrinsics, frame=args.frame,
-    )
+    try:
+        demo, frames, landmarks = read_recording(
+            args.video, masks=args.masks, labels=args.labels, polygons=args.polygons, boxes=args.boxes,
+            video_id=args.video_id, contact=args.contact, detections=args.detections, action=args.action,
+            fps=args.fps, intrinsics=args.intrinsics, frame=args.frame,
+        )
+    except (DemonstrationError, ImportError) as error:  # nothing written yet (ImportError: MediaPipe missing)
+        raise Refused(str(error)) from None
     demo_path.parent.mkdir(parents=True, exist_ok=True)
     demo.save(demo_path)
     on = demo.contact.nonzero()[0]

@@ -12,7 +12,9 @@ A step is finished when its output file exists and loads (and, for the reconstru
 made with the options asked now, its ``options`` of docs/formats.md, the device aside); a
 rerun skips finished steps and redoes every step after one it had to redo. Exit status: 0 when the replay succeeds (or
 the robot steps are skipped, placo / MuJoCo missing), 3 when a step stopped the run (no
-robot plan) or the replay fails the action's criteria, 1 for bad input.
+robot plan) or the replay fails the action's criteria, 2 when the recording gives no
+demonstration (no hand found, an object lost, an outline outside the frame, ...), 1 for
+other bad input (a missing file).
 """
 
 from __future__ import annotations
