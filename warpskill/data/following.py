@@ -34,6 +34,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from warpskill.data.tracking import LK_WINDOW_PX, carried_corners
+
 MAX_CORNERS = 150
 """Most corners tracked inside one label (or the background) from one frame to the next."""
 
@@ -46,15 +48,6 @@ CORNER_SPACING_PX = 3
 EDGE_PX = 2
 """Corners this close [px] to a label's edge or the occluder are not tracked (they mix
 the label with what surrounds it)."""
-
-LK_WINDOW_PX = 15
-"""Side [px] of the Lucas-Kanade window."""
-
-LK_LEVELS = 4
-"""Pyramid levels of the Lucas-Kanade tracker (motions up to about 2**levels windows)."""
-
-ROUND_TRIP_PX = 1.0
-"""Largest distance [px] between a corner and its position tracked forward then back."""
 
 RANSAC_PX = 1.5
 """RANSAC inlier threshold [px] of the fitted similarity."""
@@ -271,8 +264,8 @@ def _compose(step: np.ndarray, transform: np.ndarray) -> np.ndarray:
 
 
 def _tracked(before: np.ndarray, after: np.ndarray, where: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Corners inside ``where`` (H, W uint8) of ``before`` and their places in ``after``,
-    those that track back to within :data:`ROUND_TRIP_PX`: two (M, 2) float32 arrays [px]."""
+    """Corners inside ``where`` (H, W uint8) of ``before`` and their places in ``after``, those
+    that track back (:func:`~warpskill.data.tracking.carried_corners`): two (M, 2) float32 [px]."""
     corners = cv2.goodFeaturesToTrack(before, MAX_CORNERS, CORNER_QUALITY, CORNER_SPACING_PX, mask=where, blockSize=5)
     if corners is None or len(corners) < 2 * MIN_CORNERS:  # a small or thin part: a grid of its pixels too
         ys, xs = np.nonzero(where[::CORNER_SPACING_PX, ::CORNER_SPACING_PX])
@@ -281,11 +274,7 @@ def _tracked(before: np.ndarray, after: np.ndarray, where: np.ndarray) -> tuple[
         corners = grid if corners is None else np.concatenate([corners, grid])
     if len(corners) < MIN_CORNERS:
         return np.zeros((0, 2), np.float32), np.zeros((0, 2), np.float32)
-    params = dict(winSize=(LK_WINDOW_PX, LK_WINDOW_PX), maxLevel=LK_LEVELS)
-    ahead, ok, _ = cv2.calcOpticalFlowPyrLK(before, after, corners, None, **params)
-    back, ok_back, _ = cv2.calcOpticalFlowPyrLK(after, before, ahead, None, **params)
-    good = (ok[:, 0] == 1) & (ok_back[:, 0] == 1) & (np.linalg.norm(back - corners, axis=2)[:, 0] < ROUND_TRIP_PX)
-    return corners[good, 0], ahead[good, 0]
+    return carried_corners(before, after, corners)
 
 
 def _similarity(source: np.ndarray, target: np.ndarray) -> np.ndarray | None:

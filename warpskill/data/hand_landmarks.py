@@ -27,6 +27,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from warpskill.data.tracking import carried_corners
+
 MODEL_FILE = "hand_landmarker.task"
 """Name of MediaPipe's hand landmarker model file among an installed distribution's files."""
 
@@ -81,15 +83,6 @@ fewer means the hand is hidden, gone or blurred and following stops."""
 
 MAX_CORNERS = 60
 """Most corners tracked on one hand from one frame to the next."""
-
-LK_WINDOW_PX = 15
-"""Side [px] of the Lucas-Kanade window."""
-
-LK_LEVELS = 3
-"""Pyramid levels of the Lucas-Kanade tracker."""
-
-ROUND_TRIP_PX = 1.0
-"""Largest distance [px] between a corner and its position tracked forward then back."""
 
 RANSAC_PX = 2.0
 """RANSAC inlier threshold [px] of the similarity fitted to the hand's corners."""
@@ -349,16 +342,10 @@ def _move(points: np.ndarray, before: np.ndarray, after: np.ndarray) -> np.ndarr
     corners = cv2.goodFeaturesToTrack(before, MAX_CORNERS, 0.01, 3, mask=region.astype(np.uint8) * 255)
     if corners is None or len(corners) < MIN_FOLLOW_CORNERS:
         return None
-    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)
-    window = (LK_WINDOW_PX, LK_WINDOW_PX)
-    moved, ok, _ = cv2.calcOpticalFlowPyrLK(before, after, corners, None, winSize=window, maxLevel=LK_LEVELS, criteria=criteria)
-    back, ok_back, _ = cv2.calcOpticalFlowPyrLK(after, before, moved, None, winSize=window, maxLevel=LK_LEVELS, criteria=criteria)
-    good = (ok[:, 0] == 1) & (ok_back[:, 0] == 1) & (np.linalg.norm(back - corners, axis=-1)[:, 0] < ROUND_TRIP_PX)
-    if good.sum() < MIN_FOLLOW_CORNERS:
+    source, target = carried_corners(before, after, corners)
+    if len(source) < MIN_FOLLOW_CORNERS:
         return None
-    transform, inliers = cv2.estimateAffinePartial2D(
-        corners[good], moved[good], method=cv2.RANSAC, ransacReprojThreshold=RANSAC_PX
-    )
+    transform, inliers = cv2.estimateAffinePartial2D(source, target, method=cv2.RANSAC, ransacReprojThreshold=RANSAC_PX)
     if transform is None or inliers is None or int(inliers.sum()) < MIN_FOLLOW_CORNERS:
         return None
     scale = float(np.sqrt(abs(np.linalg.det(transform[:, :2]))))

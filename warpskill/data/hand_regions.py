@@ -11,15 +11,13 @@ import cv2
 import numpy as np
 
 from warpskill.data.hand_landmarks import (
-    LK_LEVELS,
-    LK_WINDOW_PX,
     MIN_FOLLOW_CORNERS,
     MIN_HAND_FRACTION,
     RANSAC_PX,
-    ROUND_TRIP_PX,
     HandTracks,
     check_frames,
 )
+from warpskill.data.tracking import carried_corners
 
 SKIN_CR = (133, 173)
 """Range of the red chroma Cr (ITU-R BT.601 YCrCb, 8 bit) of skin, any ethnicity: Chai &
@@ -172,14 +170,10 @@ def _camera_step(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     corners = cv2.goodFeaturesToTrack(before, CAMERA_CORNERS, 0.01, 4)
     if corners is None or len(corners) < MIN_FOLLOW_CORNERS:
         return np.eye(3)
-    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)
-    window = (LK_WINDOW_PX, LK_WINDOW_PX)
-    moved, ok, _ = cv2.calcOpticalFlowPyrLK(before, after, corners, None, winSize=window, maxLevel=LK_LEVELS, criteria=criteria)
-    back, ok_back, _ = cv2.calcOpticalFlowPyrLK(after, before, moved, None, winSize=window, maxLevel=LK_LEVELS, criteria=criteria)
-    good = (ok[:, 0] == 1) & (ok_back[:, 0] == 1) & (np.linalg.norm(back - corners, axis=-1)[:, 0] < ROUND_TRIP_PX)
-    if good.sum() < MIN_FOLLOW_CORNERS:
+    source, target = carried_corners(before, after, corners)
+    if len(source) < MIN_FOLLOW_CORNERS:
         return np.eye(3)
-    homography, inliers = cv2.findHomography(moved[good], corners[good], cv2.RANSAC, RANSAC_PX)
+    homography, inliers = cv2.findHomography(target, source, cv2.RANSAC, RANSAC_PX)
     if homography is None or inliers is None or int(inliers.sum()) < MIN_FOLLOW_CORNERS:
         return np.eye(3)
     return homography
