@@ -24,16 +24,16 @@ from warpskill.synthetic import check_scenarios, make_demonstration, real_scenar
 
 
 NOUN_SPREAD = 0.3
-"""Log-normal spread of real objects' largest edges around their noun's typical one (a mug,
-a bottle, a box of one name differ by about this much in log)."""
+"""Log-normal spread of real objects' sizes around their noun's typical one (a mug, a
+bottle, a box of one name differ by about this much in log)."""
 
 
 def spread_noun(size: np.ndarray, rng: np.random.Generator, spread: float = NOUN_SPREAD) -> str:
     """A noun of :data:`~warpskill.contract.nouns.SIZES` for an object of edges ``size`` (3,) [m]:
-    the one whose typical largest edge is nearest, in log, to the object's largest edge times a
-    log-normal draw of ``spread``; as for a real object, right only on average."""
-    target = np.log(np.max(size)) + spread * rng.standard_normal()
-    return min(SIZES, key=lambda noun: abs(np.log(SIZES[noun].edges[-1]) - target))
+    the one whose typical edges, sorted, are nearest in log to the object's sorted edges times
+    one log-normal draw of ``spread``; as for a real object, right only on average."""
+    target = np.log(np.sort(size)) + spread * rng.standard_normal()
+    return min(SIZES, key=lambda noun: float(np.sum((np.log(SIZES[noun].edges) - target) ** 2)))
 
 
 def error_table(errors: dict[str, list[dict[str, float]]]) -> str:

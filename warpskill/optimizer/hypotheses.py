@@ -35,7 +35,7 @@ from warpskill.optimizer.inputs import (
     within_static_across,
     working_inputs,
 )
-from warpskill.optimizer.scene import SceneTrajectories, ends_behind_static, final_bottom
+from warpskill.optimizer.scene import MIN_OBJECT_SIZE, SceneTrajectories, ends_behind_static, final_bottom
 from warpskill.optimizer.stage_a import InitialParameters
 from warpskill.optimizer.stage_b import PhysicalRollout, PhysicalScene
 from warpskill.optimizer.weights import LossWeights
@@ -68,8 +68,9 @@ class Evidence:
             static's (:func:`~warpskill.optimizer.inputs.covers_static_top`).
         enclosed: (N,) bool, frames after the release where the object's box lies within the
             static's columns (:func:`~warpskill.optimizer.inputs.within_static_across`).
-        typical_edge: [m] the largest edge of the typical size of the object's noun where its
-            size prior applies (``weights.object_noun_size`` on); None elsewhere.
+        typical_edges: [m] the edges, ascending, of the typical size of the object's noun
+            (each at least :data:`~warpskill.optimizer.scene.MIN_OBJECT_SIZE`) where its size
+            prior applies (``weights.object_noun_size`` on); None elsewhere.
     """
 
     demo: Demonstration
@@ -82,7 +83,7 @@ class Evidence:
     behind: torch.Tensor | None
     covering: np.ndarray
     enclosed: np.ndarray
-    typical_edge: float | None = None
+    typical_edges: tuple[float, float, float] | None = None
 
     @property
     def placement(self) -> np.ndarray:
@@ -104,7 +105,9 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
     typical = typical_size(noun)
     weights = config.weights.for_scene(known_length=bool(known), object_from_boxes=bool(inputs.targets.boxed[1]),
                                        noun_size_known=typical is not None)
-    typical_edge = float(typical.edges[-1]) if typical is not None and weights.object_noun_size > 0 else None
+    typical_edges = None
+    if typical is not None and weights.object_noun_size > 0:  # no cuboid is thinner than MIN_OBJECT_SIZE (paper)
+        typical_edges = tuple(max(float(edge), MIN_OBJECT_SIZE) for edge in typical.edges)
     held = held_after_contact(inputs.masks.cpu().numpy(), inputs.contact_signal)
     rest = cut = covering = enclosed = np.zeros(demo.num_frames, dtype=bool)
     if demo.num_static:
@@ -113,7 +116,7 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
         covering = covers_static_top(full, inputs.contact_signal)
         enclosed = within_static_across(full, inputs.contact_signal)
     return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut), covering, enclosed,
-                    typical_edge)
+                    typical_edges)
 
 
 @dataclass

@@ -206,7 +206,7 @@ def _stage_a_objective(candidates: Sequence[Candidate], evidence: Sequence[Evide
                                [e.inputs.targets for e in seen])
         return [
             initial_objective(scene, masks, e.inputs.targets, e.inputs.contact, e.demo.fps, e.weights, e.uncertain,
-                              candidates[j].support, e.behind_prior(candidates[j].support), e.typical_edge)
+                              candidates[j].support, e.behind_prior(candidates[j].support), e.typical_edges)
             for j, scene, masks, e in zip(live, scenes, rendered, seen)
         ]
 
@@ -269,7 +269,7 @@ def _stage_b_objective(hypotheses: Sequence[PhysicsHypothesis], evidence: Sequen
         for b, result, masks in zip(live, results, rendered):
             h, e = hypotheses[b], evidence[hypotheses[b].demo]
             terms.append(physical_objective(result, masks, e.inputs.targets, h.contact, e.inputs.object_visible,
-                                            e.weights, h.support, e.behind_prior(h.support), e.typical_edge))
+                                            e.weights, h.support, e.behind_prior(h.support), e.typical_edges))
         return terms
 
     return objective

@@ -143,36 +143,40 @@ def footprint_prior(scene: SceneTrajectories, weights: LossWeights) -> torch.Ten
     return weights.object_footprint * torch.log(scene.object_size[1] / scene.object_size[0]).square()
 
 
-def noun_size_prior(scene: SceneTrajectories, weights: LossWeights, typical_edge: float) -> torch.Tensor:
-    """Weak prior on the scene's size from what the object is: ``log(largest edge / typical_edge)^2``,
-    weighted, ``typical_edge`` [m] being the largest edge of its noun's typical size
-    (:func:`warpskill.contract.nouns.typical_size`).
+def noun_size_prior(scene: SceneTrajectories, weights: LossWeights,
+                    typical_edges: tuple[float, float, float]) -> torch.Tensor:
+    """Weak prior on the object's size from what it is: ``sum_i log(edge_i / typical_i)^2``
+    over the edges sorted ascending, weighted, ``typical_edges`` [m] being those of its noun's
+    typical size (:func:`warpskill.contract.nouns.typical_size`), in ascending order.
 
     Boxes leave the scale open (a larger scene farther away draws the same boxes), and the
-    camera-height prior alone would decide it. The largest edge, along whichever axis: boxes
-    show neither the object's depth nor how thin it is, and a table of typical sizes is
-    surest of an object's longest extent (a fork's length, not its thickness).
+    camera-height prior alone would decide it; and they show neither the object's depth nor
+    how thin it is (a fork lying across its box fills the box). Sorted edges compare the
+    object's extents whatever its axes: a fork comes out long and thin, a plate flat.
     :meth:`~warpskill.optimizer.weights.LossWeights.for_scene` says where it applies.
     """
-    return weights.object_noun_size * torch.log(scene.object_size.max() / typical_edge).square()
+    edges = torch.sort(scene.object_size).values
+    typical = edges.new_tensor(typical_edges)
+    return weights.object_noun_size * torch.log(edges / typical).square().sum()
 
 
 def scene_priors(
     scene: SceneTrajectories, weights: LossWeights, supported: torch.Tensor | None = None,
-    behind: torch.Tensor | None = None, *, whole_object_behind: bool = False, typical_edge: float | None = None,
+    behind: torch.Tensor | None = None, *, whole_object_behind: bool = False,
+    typical_edges: tuple[float, float, float] | None = None,
 ) -> dict[str, torch.Tensor]:
     """The terms both stages add on the scene itself: the camera-height and footprint priors, the
     static boxes held out of the object and, where given, the placements "on the static" (``supported``,
     (N,)) and "behind the static" (``behind``, (N,); with ``whole_object_behind``, the
     object's front rather than its centre: see :func:`in_front_of_back_penalty`) and the size
-    prior of the object's noun (``typical_edge`` [m]: see :func:`noun_size_prior`)."""
+    prior of the object's noun (``typical_edges`` [m]: see :func:`noun_size_prior`)."""
     terms = {
         "camera height": camera_height_prior(scene, weights),
         "object footprint": footprint_prior(scene, weights),
         "static in object": static_in_object_penalty(scene, weights),
     }
-    if typical_edge is not None:
-        terms["object noun size"] = noun_size_prior(scene, weights, typical_edge)
+    if typical_edges is not None:
+        terms["object noun size"] = noun_size_prior(scene, weights, typical_edges)
     if supported is not None:
         terms["on the static"] = off_static_penalty(scene, supported, weights)
     if behind is not None:

@@ -103,7 +103,7 @@ def initial_objective(
     uncertain: torch.Tensor | None = None,
     supported: torch.Tensor | None = None,
     behind: torch.Tensor | None = None,
-    typical_edge: float | None = None,
+    typical_edges: tuple[float, float, float] | None = None,
 ) -> dict[str, torch.Tensor]:
     """Stage (a) loss terms: perceptual, contact distance, smoothness and resting priors.
 
@@ -122,7 +122,7 @@ def initial_objective(
         behind: (N,) 1 in frames where the first static box hides the object's lower part
             (:func:`warpskill.optimizer.inputs.cut_by_static`): its centre is asked to lie
             behind the box's back.
-        typical_edge: [m] the largest edge of the object's noun's typical size, where its
+        typical_edges: [m] the edges, ascending, of the object's noun's typical size, where its
             prior applies (:func:`~warpskill.optimizer.scene.noun_size_prior`); None: no such prior.
     """
     tip_distance = box_signed_distance(scene.hand_pos, scene.object_pos, scene.object_rot, scene.object_size)
@@ -156,4 +156,4 @@ def initial_objective(
         + weights.penetration * (free * (low - support).square()).mean(),
         # ... and nothing goes through the ground.
         "penetration": weights.penetration * below,
-    } | scene_priors(scene, weights, supported, behind, typical_edge=typical_edge)
+    } | scene_priors(scene, weights, supported, behind, typical_edges=typical_edges)

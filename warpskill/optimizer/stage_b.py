@@ -354,7 +354,7 @@ def physical_objective(
     weights: LossWeights,
     supported: torch.Tensor | None = None,
     behind: torch.Tensor | None = None,
-    typical_edge: float | None = None,
+    typical_edges: tuple[float, float, float] | None = None,
 ) -> dict[str, torch.Tensor]:
     """Stage (b) loss terms: perceptual, velocity regularisation, contact, stability, and the
     placement "on the static" where it is the hypothesis.
@@ -371,7 +371,7 @@ def physical_objective(
             (the placement whose physics is being tried); None: no such placement.
         behind: (N,) 1 in frames where the first static box hides the object's lower part:
             the object is asked to stand behind the box's back; None: no such frames.
-        typical_edge: [m] the largest edge of the object's noun's typical size, where its
+        typical_edges: [m] the edges, ascending, of the object's noun's typical size, where its
             prior applies (:func:`~warpskill.optimizer.scene.noun_size_prior`); None: no such prior.
 
     Returns:
@@ -392,4 +392,4 @@ def physical_objective(
             + ((1 - contact) * (rollout.grasp + margin).clamp_min(0.0) ** 2).mean()
         ),
         "stability": weights.stability * result.still_velocity.mean(),
-    } | scene_priors(result.scene, weights, supported, behind, whole_object_behind=True, typical_edge=typical_edge)
+    } | scene_priors(result.scene, weights, supported, behind, whole_object_behind=True, typical_edges=typical_edges)

@@ -28,10 +28,15 @@ class LossWeights:
     camera_height: float = 0.5  #: log(camera height / typical_camera_height)^2, both stages (see :meth:`for_scene`)
     typical_camera_height: float = 0.45  #: [m] a table filmed by a person standing or sitting at it
     object_footprint: float = 0.5  #: log(object depth / width)^2, both stages (see :meth:`for_scene`)
-    #: log(largest object edge / its noun's typical largest edge)^2 (dimensionless: a ratio of
-    #: lengths), both stages (see :meth:`for_scene`); 0.5 is a log-normal prior of spread 1.0,
-    #: as strong as the camera-height prior it pulls against (docs/results-history.md).
-    object_noun_size: float = 0.5
+    #: sum over the object's edges, sorted, of log(edge / its noun's typical edge)^2
+    #: (dimensionless: ratios of lengths), both stages, for an object drawn from boxes (see
+    #: :meth:`for_scene`); 2 is a log-normal prior of spread 0.5 per edge, four times the
+    #: camera-height prior it pulls against: objects of one name differ by about 0.3 in log,
+    #: camera heights far more (docs/results-history.md).
+    object_noun_size: float = 2.0
+    #: the share of ``object_noun_size`` kept where the masks are true silhouettes: there
+    #: the hand's apparent width measures the scale, and the noun only backs it up
+    masks_noun_share: float = 0.25
 
     def for_scene(self, *, known_length: bool, object_from_boxes: bool, noun_size_known: bool = False) -> "LossWeights":
         """These weights with each prior on only where it has something to decide.
@@ -49,11 +54,12 @@ class LossWeights:
         holds the scale; there the footprint prior only pulls real objects away from their
         shape (docs/results-history.md has the measurements behind both rules).
 
-        Object noun size (``object_noun_size``, the largest edge about its noun's typical
-        one, :mod:`warpskill.contract.nouns`): on wherever no length is known, the images
-        then leaving the scale open. The camera-height prior stays on beside it: both are
-        weak, and together they pull toward the scale both make likely. A known length
-        fixes the scale better than a typical size.
+        Object noun size (``object_noun_size``, the edges about its noun's typical ones,
+        :mod:`warpskill.contract.nouns`): on wherever no length is known, the images
+        then leaving the scale open; at ``masks_noun_share`` of its weight where the masks
+        are true silhouettes, whose hand width measures the scale. The camera-height prior
+        stays on beside it, weaker: together they pull toward the scale both make likely. A
+        known length fixes the scale better than a typical size.
 
         Args:
             known_length: a length of the scene is known (``known=``).
@@ -62,4 +68,5 @@ class LossWeights:
         """
         return replace(self, camera_height=0.0 if known_length and not object_from_boxes else self.camera_height,
                        object_footprint=self.object_footprint if known_length and object_from_boxes else 0.0,
-                       object_noun_size=self.object_noun_size if noun_size_known and not known_length else 0.0)
+                       object_noun_size=0.0 if known_length or not noun_size_known
+                       else self.object_noun_size * (1.0 if object_from_boxes else self.masks_noun_share))

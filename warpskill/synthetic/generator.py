@@ -21,6 +21,7 @@ from warpskill.synthetic.scripts import (
     TURNED_STATIC_YAW,
     Script,
     draw_variant,
+    flat_long_size,
     make_script,
     scripted_inputs,
     static_rotations,
@@ -45,7 +46,7 @@ the ellipses inscribed in per-frame boxes of them, as the Something-Else reader 
 (``"boxes"``; contact from annotator-like phases, scenes with the real videos' situations)."""
 
 
-SCENARIOS = ("none", "real", "narrow", "turned")
+SCENARIOS = ("none", "real", "narrow", "turned", "flat")
 """Which situations a ``"boxes"`` demonstration adds: the default ones only, also the held-out
 real videos' (:func:`real_scenarios`), a static box narrower than the object
 (:data:`~warpskill.synthetic.scripts.NARROW_STATIC`) or one turned by up to
@@ -126,7 +127,9 @@ def make_demonstration(
             the moved object partly or wholly hidden by the static box).
         scenarios: one of :data:`SCENARIOS` (``input="boxes"`` only). ``"narrow"`` makes a
             put action's static box narrower than the object and deep, ``"turned"`` turns it by
-            up to :data:`~warpskill.synthetic.scripts.TURNED_STATIC_YAW`. ``"real"`` mixes in
+            up to :data:`~warpskill.synthetic.scripts.TURNED_STATIC_YAW`, ``"flat"`` makes the
+            object long, thin and lying flat (:data:`~warpskill.synthetic.scripts.FLAT_LONG`,
+            a pen or a fork on the table). ``"real"`` mixes in
             the held-out real videos' situations, chosen by :func:`real_scenarios` (a
             deterministic function of action and seed): the spoilers of
             :data:`warpskill.synthetic.spoil.SPOILERS` and tall thin objects; the boxes and
@@ -151,6 +154,8 @@ def make_demonstration(
             variant = replace(variant, narrow_static=True, wide_static=0.0)
         if scenarios == "turned":
             variant = replace(variant, static_yaw=TURNED_STATIC_YAW)
+        if scenarios == "flat":
+            variant = replace(variant, object_size=flat_long_size(variant_rng))
         script = make_script(action, rng, duration, variant)
         truth = _simulate(script, fps, duration)
         masks = _render(truth, intrinsics)

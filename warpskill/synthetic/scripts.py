@@ -67,6 +67,16 @@ TALL_THIN = ((0.02, 0.045), (0.02, 0.045), (0.15, 0.24))
 """[m] ranges of the width, depth and height of a tall thin object (a bottle, a pen standing up)."""
 
 
+FLAT_LONG = ((0.12, 0.20), (0.02, 0.04), (0.01, 0.025))
+"""[m] ranges of the width, depth and height of a long thin object lying flat (a pen, a
+fork, a toothbrush on the table)."""
+
+
+def flat_long_size(rng: np.random.Generator) -> tuple[float, float, float]:
+    """Edges [m] of a long thin object lying flat, drawn from :data:`FLAT_LONG`."""
+    return tuple(float(rng.uniform(lo, hi)) for lo, hi in FLAT_LONG)
+
+
 def tall_thin_size(rng: np.random.Generator) -> tuple[float, float, float]:
     """Edges [m] of a tall thin object, drawn from :data:`TALL_THIN`."""
     return tuple(float(rng.uniform(lo, hi)) for lo, hi in TALL_THIN)
