@@ -28,8 +28,9 @@ from warpskill.engine.projection import world_to_camera
 
 OUTCOMES_JSON = "outcomes.json"
 OUTCOMES_CSV = "outcomes.csv"
-ERROR_KEYS = ("centre", "hand", "size", "camera_height", "elevation", "scale")
-"""Key errors kept per case (see :func:`camera_frame_errors`)."""
+ERROR_KEYS = ("centre", "hand", "size", "camera_height", "elevation", "scale", "noun_ratio")
+"""Key errors kept per case (see :func:`camera_frame_errors`; ``noun_ratio``: the object's
+largest edge over its noun's typical one, on real videos)."""
 
 
 @dataclasses.dataclass(frozen=True)

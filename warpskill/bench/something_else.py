@@ -19,6 +19,7 @@ reconstruction and every replay meet the criteria), and a per-video table follow
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import statistics
 import time
@@ -53,6 +54,8 @@ from warpskill.robot import prefer_headless_gl
 from warpskill.visual.pictures import save_pictures
 
 ROW = "full method (box masks)"
+NEAR_TYPICAL = 1.5
+"""An object's largest edge within this factor of its noun's typical one counts as its real size."""
 
 
 def bench_something_else(
@@ -162,9 +165,10 @@ def _with_outcomes(result: dict, out: Path, table, vids, baseline, save_baseline
     """The run's result with its per-video outcomes and size ratios added, written to ``out``,
     compared with ``baseline``."""
     cases = {vid: table[vid].action for vid in vids if table[vid].action}
-    outcomes = folder_outcomes(out, cases, result["failures"])
-    record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
     ratios = noun_size_ratios(out, {vid: object_noun or video_noun(table[vid]) for vid in vids})
+    outcomes = [dataclasses.replace(o, errors={**o.errors, "noun_ratio": ratios[o.case]})
+                if ratios.get(o.case) is not None else o for o in folder_outcomes(out, cases, result["failures"])]
+    record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
     return {**result, "outcomes": outcomes, "size_ratios": ratios}
 
 
@@ -180,9 +184,14 @@ def noun_size_ratios(out: Path, nouns: dict[str, str | None]) -> dict[str, float
     known = [ratio for ratio in ratios.values() if ratio is not None]
     unknown = [f"{vid} ({nouns[vid] or 'no noun'})" for vid, ratio in ratios.items() if ratio is None]
     if known:
+        within = sum(1 / NEAR_TYPICAL <= ratio <= NEAR_TYPICAL for ratio in known)
         print(f"object size / its noun's typical size (largest edge): median {statistics.median(known):.2f}x "
-              f"({min(known):.2f}-{max(known):.2f}x over {len(known)} videos)"
+              f"({min(known):.2f}-{max(known):.2f}x over {len(known)} videos, {within} within {NEAR_TYPICAL:g}x)"
               + (f"; no typical size: {', '.join(unknown)}" if unknown else ""))
+        far = [f"{vid} {nouns[vid]} {ratio:.2f}x" for vid, ratio in ratios.items()
+               if ratio is not None and not 1 / NEAR_TYPICAL <= ratio <= NEAR_TYPICAL]
+        if far:
+            print(f"  beyond {NEAR_TYPICAL:g}x: {', '.join(far)}")
     return ratios
 
 
