@@ -11,6 +11,7 @@ import pytest
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.skill import overlap_depth, skill_from
 from warpskill.export.layouts import BASE_CLEARANCE, HALF_ANGLE, INNER, OUTER, ReachableTable, sample_layouts
+from warpskill.robot.placement import check_reach
 from warpskill.synthetic import make_demonstration
 
 
@@ -30,9 +31,10 @@ def test_layouts_lie_in_reach_apart_and_are_seeded(put_skill):
     assert drawn != sample_layouts(put_skill, 12, seed=5, table=table)
     for layout in drawn:
         recon = put_skill.apply(layout)
-        radius, bearing = table.polar(recon.object_pos[:, :2])
+        radius, bearing = table.polar(recon.object_pos[:1, :2])  # the start on the sector ...
         assert np.all((radius >= INNER) & (radius <= OUTER) & (np.abs(bearing) <= HALF_ANGLE))
         assert table.contains(np.array(layout.statics)[:, :2]).all()
+        check_reach(recon)  # ... and the whole held path keeps the reach margin (raises otherwise)
         assert overlap_depth(recon.object_pos[0], recon.object_rot[0], recon.object_size,
                              recon.static_pos[0], recon.static_rot[0], recon.static_size[0]) == 0.0
     yaws = np.array([layout.object[2] for layout in drawn])

@@ -16,7 +16,11 @@ demonstrated layout, and the motion relative to the objects:
 - for ``put_*``, the release relative to the (first) static box as seen from the camera:
   the object centre's offset from the box centre in world axes, along the dominant
   horizontal world axis as the gap between their world extents (at least touching: a
-  reconstruction that ends the object a little inside the box meant it beside the box).
+  reconstruction that ends the object a little inside the box meant it beside the box);
+  for ``put_onto``, the offset is kept inside the box's top (:data:`ONTO_INSET`).
+
+An object held from the first frame was carried into view: in a layout it starts where the
+demonstration has slowed down for good (:meth:`Skill.takeover`), resting on the table.
 
 A carried object (``pick_up``, ``put_*``) whose path in a new layout would run into a
 static box is lifted over it, as a robot would carry it: a reconstruction's path may graze
@@ -42,7 +46,8 @@ from warpskill.contract.npz import read_npz, save_npz_atomic
 from warpskill.contract.reconstruction import FIELD_SHAPES as RECONSTRUCTION_SHAPES
 from warpskill.contract.reconstruction import Reconstruction, SceneCounts
 
-__all__ = ["Layout", "LayoutError", "Skill", "SkillError", "heading", "overlap_depth", "skill_from"]
+__all__ = ["ONTO_INSET", "SWING_SPEED", "TAKEOVER_SPEED", "Layout", "LayoutError", "Skill", "SkillError", "heading",
+           "overlap_depth", "skill_from"]
 
 OVERLAP_TOLERANCE = 0.01
 """[m] boxes that interpenetrate deeper than this make a layout impossible."""
@@ -61,6 +66,22 @@ MIN_TRAVEL = 0.01
 
 HELD = 0.5
 """``grasped`` above this: the hand holds (or touches) the object."""
+
+ONTO_INSET = 0.03
+"""[m] a put onto lets go with the object's centre at least this far inside the edges of the static
+box's top (half the top's half extent on a top narrower than twice that): the object settles by a
+centimetre or so, and a centre at the edge tips it off the box (a reconstruction may end the
+object beside the box it was put onto)."""
+
+SWING_SPEED = 1.7
+"""[m/s] an object held from the first frame that moves faster than this (between two frames)
+is still being swung into view: a new layout starts it where it has slowed down for good
+(:meth:`Skill.takeover`). The Panda's Cartesian speed limit; the robot takes over a carried-in
+object no faster than this (:data:`warpskill.robot.retargeting.CARRY_SPEED`)."""
+
+TAKEOVER_SPEED = 0.5 * SWING_SPEED
+"""[m/s] the object of a swing is taken over at the first frame it moves slower than this: the
+robot starts it from rest (at the swing speed itself, the plan lags 3 cm behind at once)."""
 
 FIELD_SHAPES: dict[str, tuple[str | int, ...]] = {
     "action": (),
@@ -254,9 +275,71 @@ class Skill(SceneCounts):
 
     @property
     def layout(self) -> Layout:
-        """The demonstrated layout: :meth:`apply` of it reproduces the reconstruction."""
-        return Layout(object=(*self.object_start_pos[:2], heading(self.object_start_rot)),
+        """The demonstrated layout: :meth:`apply` of it reproduces the reconstruction (for an object
+        carried into view, from its take-over on, resting on the table before: :meth:`takeover`)."""
+        start_pos, start_rot, _, _ = self._motion()
+        return Layout(object=(*start_pos[:2], heading(start_rot)),
                       statics=tuple((*p[:2], heading(R)) for p, R in zip(self.static_pos, self.static_rot)))
+
+    def takeover(self) -> int:
+        """The frame a new layout starts the object at: 0, or for an object held from the first
+        frame (carried into view: its start is unknown), the first frame after the last one, before
+        the last held frame, at which it moves faster than :data:`SWING_SPEED` (0 where none does)
+        from which it moves no faster than :data:`TAKEOVER_SPEED` to the next.
+
+        Before it, the demonstration swings the object in from out of view, metres away on a
+        real video's reconstruction; no layout on the table holds that path and no robot
+        follows it. In a layout the object waits, held, at its take-over pose until then
+        (:meth:`apply`), so the demonstrated layout reproduces the reconstruction from this
+        frame on only.
+        """
+        if not self._carried_in():
+            return 0
+        speed = np.linalg.norm(np.diff(self.object_motion_pos, axis=0), axis=1) * self.fps  # (N - 1,)
+        held = np.flatnonzero(self.grasped > HELD)
+        last = int(held[-1]) if held[-1] + 1 < len(self.grasped) else len(self.grasped) - 1
+        fast = np.flatnonzero(speed[:last] > SWING_SPEED)
+        if len(fast) == 0:
+            return 0
+        k = int(fast[-1]) + 1
+        while k < last and speed[k] > TAKEOVER_SPEED:  # from rest, the robot takes it once it has slowed down
+            k += 1
+        return k
+
+    def _carried_in(self) -> bool:
+        """Whether the object is held from the first frame and moves at once (carried into view;
+        a skill carried to a layout waits still at its start instead)."""
+        return bool(self.grasped[0] > HELD and self.num_frames > 1
+                    and np.any(self.object_motion_pos[1] != self.object_motion_pos[0]))
+
+    def _motion(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The start pose (3,), (3, 3) and the motion relative to it (N, 3), (N, 3, 3) that a layout places.
+
+        The demonstrated ones; for an object carried into view (held from the first frame), the
+        object starts at its take-over pose (frame k of :meth:`takeover`, often 0) turned onto a
+        face: a carried one (pick-ups, puts) onto its largest (its reconstructed tilt in the air
+        says nothing of how it rests, and would stand it on an edge or on end), a pushed or
+        pulled one onto the face nearest down (it was seen on the table), and
+        lowered onto the table (its bottom at z = 0), waits there until frame k, then follows the
+        demonstrated path, the lowering shrinking linearly to none at the release (or the last frame).
+        """
+        k = self.takeover()
+        if not self._carried_in():
+            return self.object_start_pos, self.object_start_rot, self.object_motion_pos, self.object_motion_rot
+        start_rot = _on_a_face(self.object_motion_rot[k] @ self.object_start_rot, self.object_size,
+                               largest=not _world_directed(self.action))
+        start_pos = self.object_start_pos + self.object_motion_pos[k]
+        drop = start_pos[2] - _support_extent(start_rot, self.object_size, np.array([0.0, 0.0, 1.0]))
+        start_pos = start_pos - np.array([0.0, 0.0, drop])
+        _, k_off = self.frames()
+        end = (self.num_frames - 1) if k_off is None else k_off
+        motion_pos = self.object_motion_pos - self.object_motion_pos[k]
+        motion_pos[:k] = 0.0
+        frames = np.arange(self.num_frames)
+        motion_pos[:, 2] += drop * np.clip((frames - k) / max(end - k, 1), 0.0, 1.0)
+        motion_rot = self.object_motion_rot @ self.object_motion_rot[k].T  # the object's turn since frame k
+        motion_rot[:k] = np.eye(3)
+        return start_pos, start_rot, motion_pos, motion_rot
 
     def frames(self) -> tuple[int, int | None]:
         """The onset frame and the release frame (None: held to the end)."""
@@ -330,16 +413,17 @@ class Skill(SceneCounts):
         (:func:`_on_top_floor`).
         """
         x, y, yaw = layout.object
-        start_rot = _rot_z(yaw - heading(self.object_start_rot)) @ self.object_start_rot
-        rot = self.object_motion_rot @ start_rot
-        start = np.array([x, y, self.object_start_pos[2]])
+        demo_pos, demo_rot, motion_pos, motion_rot = self._motion()
+        start_rot = _rot_z(yaw - heading(demo_rot)) @ demo_rot
+        rot = motion_rot @ start_rot
+        start = np.array([x, y, demo_pos[2]])
         up = np.array([0.0, 0.0, 1.0])
-        start[2] += _support_extent(start_rot, size, up) - _support_extent(self.object_start_rot, self.object_size, up)
-        pos = start + self.object_motion_pos
+        start[2] += _support_extent(start_rot, size, up) - _support_extent(demo_rot, self.object_size, up)
+        pos = start + motion_pos
         k_on, k_off = self.frames()
         if self.action.startswith("put_") and k_off is not None and self.num_static:
             target = self._release_point(pos[k_off], rot[k_off], size, static_pos[0], static_rot[0])
-            pos += _progress(self.object_motion_pos, k_on, k_off)[:, None] * (target - pos[k_off])
+            pos += _progress(motion_pos, k_on, k_off)[:, None] * (target - pos[k_off])
             if self.action == "put_onto":
                 floor = _on_top_floor(pos[k_off:], rot[k_off:], size, static_pos[0], static_rot[0], self.static_size[0])
                 pos[k_off:, 2] = np.maximum(pos[k_off:, 2], floor)
@@ -351,7 +435,13 @@ class Skill(SceneCounts):
                        static_rot: np.ndarray) -> np.ndarray:
         """(3,) the release centre relative to the static box: its height ``where[2]`` kept."""
         offset = self.release_offset.copy()
-        if self.action != "put_onto":  # beside the box: the gap between the world extents is kept
+        if self.action == "put_onto":  # on the box: the centre inside its top, ONTO_INSET from the edges
+            local = static_rot.T @ offset
+            half = 0.5 * self.static_size[0, :2]
+            limit = np.maximum(half - ONTO_INSET, 0.5 * half)
+            local[:2] = np.clip(local[:2], -limit, limit)
+            offset = static_rot @ local
+        else:  # beside the box: the gap between the world extents is kept
             axis = int(np.argmax(np.abs(offset[:2])))
             direction = np.eye(3)[axis]
             reach = (_support_extent(static_rot, self.static_size[0], direction)
@@ -370,15 +460,33 @@ class Skill(SceneCounts):
             local = self.hand_in_object_pos * (size / self.object_size)
             return ref_pos + np.einsum("nij,nj->ni", ref_rot, local), ref_rot @ self.hand_in_object_rot
         offset = self.hand_in_object_pos.copy()
-        direction = _travel_direction(self.object_motion_pos, *self.frames())
+        _, start_rot, motion_pos, motion_rot = self._motion()
+        direction = _travel_direction(motion_pos, *self.frames())
         if direction is not None:  # the hand stays on the face that faces the world direction
-            demo_rot = self.object_motion_rot[ref] @ self.object_start_rot
+            demo_rot = motion_rot[ref] @ start_rot
             for k in range(self.num_frames):
                 side = math.copysign(1.0, float(offset[k] @ direction))
                 moved = (_support_extent(ref_rot[k], size, direction)
                          - _support_extent(demo_rot[k], self.object_size, direction))
                 offset[k] += side * moved * direction
         return ref_pos + offset, self.hand_in_object_rot.copy()
+
+
+def _on_a_face(rot: np.ndarray, size: np.ndarray, largest: bool) -> np.ndarray:
+    """(3, 3) the rotation ``rot`` turned so that a cuboid of edge lengths ``size`` rests on a
+    face: with ``largest``, its largest (the shortest axis made vertical), else the one nearest
+    down (the axis nearest the vertical made vertical); the side that axis pointed to kept up,
+    the more horizontal of the other two keeping its horizontal direction."""
+    i = int(np.argmin(size)) if largest else int(np.argmax(np.abs(rot[2])))
+    others = [a for a in range(3) if a != i]
+    j = max(others, key=lambda a: float(np.hypot(rot[0, a], rot[1, a])))
+    out = np.empty((3, 3))
+    out[:, i] = (0.0, 0.0, 1.0 if rot[2, i] >= 0.0 else -1.0)
+    col = np.array([rot[0, j], rot[1, j], 0.0])
+    out[:, j] = col / np.linalg.norm(col)
+    k = 3 - i - j
+    out[:, k] = np.cross(out[:, i], out[:, j]) if (i + 1) % 3 == j else np.cross(out[:, j], out[:, i])
+    return out
 
 
 def _scalar(array: np.ndarray):

@@ -13,9 +13,16 @@ default placement: the scene centre 0.5 m ahead, the robot facing world +y).
 
 and keeps a draw only where the action still makes sense: the boxes' start footprints do not
 touch (:func:`~warpskill.contract.skill.overlap_depth` 0) nor reach within
-:data:`BASE_CLEARANCE` of the robot's base axis, :meth:`Skill.apply` accepts it
-(no path through a static box) and the object's whole path, the ``put_*`` release beside or
-on the box included, stays on the sector.
+:data:`BASE_CLEARANCE` of the robot's base axis (nor does the object anywhere on its path),
+:meth:`Skill.apply` accepts it (no path through a static box) and the object's whole held
+path, the ``put_*`` release beside or on the box included, keeps
+:data:`~warpskill.robot.placement.REACH_MARGIN` (5 cm) inside the Panda's reach from some base
+placement that the retargeting searches (:func:`~warpskill.robot.placement.check_reach`, the
+test the retargeting applies to a layout: every layout drawn is one it accepts). The path is
+not held to the sector: the robot stands where the layout's scene needs it. The path moves no
+faster than :data:`~warpskill.contract.skill.SWING_SPEED` (a ``put_*`` path bent towards a
+far box could), and an object held from the first frame starts resting on the table (within
+:data:`START_HEIGHT`), not lifted over a box beside it.
 """
 
 from __future__ import annotations
@@ -26,8 +33,9 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from warpskill.contract.skill import Layout, LayoutError, Skill, overlap_depth
+from warpskill.contract.skill import HELD, SWING_SPEED, Layout, LayoutError, Skill, overlap_depth
 from warpskill.robot.model import make_scene
+from warpskill.robot.placement import check_reach
 
 __all__ = ["BASE_CLEARANCE", "HALF_ANGLE", "INNER", "OUTER", "ReachableTable", "layouts", "sample_layouts"]
 
@@ -35,6 +43,7 @@ INNER = 0.35  # [m] nearest reach from the base's axis (closer, the arm folds on
 OUTER = 0.70  # [m] farthest comfortable reach at table height (the Panda's limit is about 0.85 m)
 HALF_ANGLE = math.radians(50.0)  # [rad] bearings either side of the robot's forward axis
 MAX_DRAWS = 1000  # draws per layout before giving up
+START_HEIGHT = 0.01  # [m] an object held from the first frame starts with its bottom at most this high
 BASE_CLEARANCE = 0.15  # [m] nearest a box may start to the base's axis (its column is about 0.11 m in radius)
 
 
@@ -126,6 +135,23 @@ def _sensible(skill: Skill, layout: Layout, table: ReachableTable) -> bool:
         return False
     boxes = [(recon.object_pos[0], recon.object_rot[0], recon.object_size),
              *zip(recon.static_pos, recon.static_rot, recon.static_size)]
-    apart = all(overlap_depth(*boxes[i], *boxes[j]) == 0.0 for i in range(len(boxes)) for j in range(i + 1, len(boxes)))
+    # Footprints: each pair compared at one height (an object held from the first frame may start
+    # lifted over a box it stands on).
+    level = lambda box, z: (np.array([*box[0][:2], z]), *box[1:])  # noqa: E731
+    apart = all(overlap_depth(*boxes[i], *level(boxes[j], boxes[i][0][2])) == 0.0
+                for i in range(len(boxes)) for j in range(i + 1, len(boxes)))
     clear = all(table.clear_of_base(*box) for box in boxes)
-    return apart and clear and bool(np.all(table.contains(recon.object_pos[:, :2])))
+    if not (apart and clear):
+        return False
+    path = zip(recon.object_pos, recon.object_rot)
+    if not all(table.clear_of_base(pos, rot, recon.object_size) for pos, rot in path):
+        return False
+    if recon.grasped[0] > HELD and recon.object_corners()[0, :, 2].min() > START_HEIGHT:
+        return False  # a carried-in object lifted at once over a box beside its start
+    if np.max(np.linalg.norm(np.diff(recon.object_pos, axis=0), axis=1)) * float(recon.fps) > SWING_SPEED:
+        return False  # the put's path bent so far towards the box that it swings
+    try:
+        check_reach(recon)
+    except LayoutError:
+        return False
+    return True

@@ -7,6 +7,11 @@ plan's ``start_time`` (the end of the lead-in) to its end, and packs them as a
 TCP (hand frame of ``docs/formats.md``: origin at the TCP, local +z from the fingers towards
 the arm), ``grasp`` the gripper command (+0.02 closing, -0.02 open), ``grasped`` whether
 both fingers touch the object, the ``object_*`` fields the simulated object.
+
+A put onto is judged on more than its final frame: the replay checks the release itself
+(:func:`release_checks`: the gripper let go and the object rests, still, on the static box's
+top inside its footprint), the check :data:`RELEASE_CHECK` among the replay's checks. (A
+``replay.npz`` read back is judged by the paper's criteria alone.)
 """
 
 from __future__ import annotations
@@ -15,13 +20,22 @@ import time
 
 import numpy as np
 
-from warpskill.contract.evaluation import evaluate
+from warpskill.contract.evaluation import Evaluation, evaluate
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.replay import Replay
 from warpskill.robot import replay_mujoco
 from warpskill.robot.plan import RobotPlan
 
 ENGINES: tuple[str, ...] = ("mujoco", "newton")
+RELEASE_CHECK = "released_on_top"
+"""The name of the put onto's release check (:func:`release_checks`) among a replay's checks."""
+SETTLED = 0.01
+"""[m] a released object counts as resting when its centre moves less than this over the
+replay's last :data:`SETTLE_WINDOW` (it still slides or rolls otherwise)."""
+SETTLE_WINDOW = 0.4  # [s]
+ON_TOP = 0.015
+"""[m] a released object rests on the static box's top when its lowest corner is within this of
+the top (the engines' contacts let it sink a few millimetres)."""
 GRASP_LEVEL = 0.02  # [m] |grasp| written for the gripper command
 _TCP_TO_HAND = np.diag([1.0, -1.0, -1.0])  # TCP frame (z towards the object) -> hand frame (z towards the arm)
 
@@ -85,4 +99,30 @@ def replay(plan: RobotPlan, recon: Reconstruction, engine: str = "mujoco", *, de
         loss=np.array(0.0),
     )
     action = str(recon.action) or plan.action
-    return Replay(replayed, evaluate(replayed, action), engine, elapsed, sim["q"])
+    evaluation = evaluate(replayed, action)
+    if action == "put_onto" and recon.num_static:
+        checks = {**evaluation.checks, **release_checks(replayed, times - plan.start_time, plan.release_time
+                                                        - plan.start_time)}
+        evaluation = Evaluation(success=all(checks.values()), checks=checks, action=evaluation.action)
+    return Replay(replayed, evaluation, engine, elapsed, sim["q"])
+
+
+def release_checks(replayed: Reconstruction, times: np.ndarray, release_time: float) -> dict[str, bool]:
+    """The put onto's release, checked on the replayed object: ``{RELEASE_CHECK: ok}``.
+
+    It holds where the gripper let go (``release_time`` [s] on the replay's clock ``times``;
+    no finger touches the object in the last frame) and the object then rests on the first static
+    box's top: its centre inside the top's footprint (in the box's frame), its lowest corner
+    within :data:`ON_TOP` of the top, and it moved less than :data:`SETTLED` over the last
+    :data:`SETTLE_WINDOW`. A release that was planned but ended off the box, tilted against
+    it, or still sliding is a failed check (the replay's failure, named so in its checks).
+    """
+    pos = replayed.object_pos
+    local = replayed.static_rot[0].T @ (pos[-1] - replayed.static_pos[0])
+    inside = bool(np.all(np.abs(local[:2]) < replayed.static_size[0, :2] / 2))
+    top = float(replayed.static_corners()[0, :, 2].max())
+    on_top = abs(float(replayed.object_corners()[-1, :, 2].min()) - top) < ON_TOP
+    window = times >= times[-1] - SETTLE_WINDOW
+    still = float(np.linalg.norm(pos[window] - pos[-1], axis=1).max()) < SETTLED
+    released = bool(np.isfinite(release_time) and times[-1] > release_time and replayed.grasped[-1] < 0.5)
+    return {RELEASE_CHECK: bool(released and inside and on_top and still)}

@@ -9,7 +9,9 @@
    from which the robot can do the task, the grasp onset;
 2. grasp poses (:mod:`warpskill.robot.grasps`) ranked against the demonstrated approach;
 3. placement (:mod:`warpskill.robot.placement`): with ``placement="auto"`` (the default)
-   a deterministic search of the base pose scored on the task's key poses; a given
+   a deterministic search of the base pose scored on the task's key poses, a base from which
+   the whole held path keeps :data:`~warpskill.robot.placement.REACH_MARGIN` inside the
+   arm's reach first; a given
    :class:`~warpskill.robot.model.Placement` fixes it;
 4. at each of the best placements, the feasible grasp poses (static IK of the grasp, the
    pre-grasp and, for a carried object, the set-down pose) are planned in order of cost
@@ -19,6 +21,10 @@
    per sample (:class:`~warpskill.robot.planner.Planner`); a plan that cannot track the
    demonstration is retried 1.7 and 3 times slower, then joining at the pre-grasp.
 
+A put onto lets go with the object's bottom just above the static box's top (its centre
+inside the top: :func:`~warpskill.robot.targets.onto_release`, the carried object's own
+size), the held path blending into that release; the replay checks that it stays there.
+
 A plan that cannot be made raises :class:`PlanError` naming the frame and why, in one line.
 
 With a ``layout`` (:class:`~warpskill.contract.skill.Layout`), the reconstruction's skill
@@ -26,7 +32,8 @@ With a ``layout`` (:class:`~warpskill.contract.skill.Layout`), the reconstructio
 (:meth:`~warpskill.contract.skill.Skill.apply`) and the plan made for that reconstruction;
 the plan carries the layout, so that the replays simulate it. A layout the Panda cannot
 serve from any base placement (:func:`~warpskill.robot.placement.check_reach`), or one the
-skill cannot be carried to, raises :class:`~warpskill.contract.skill.LayoutError`.
+skill cannot be carried to, raises :class:`~warpskill.contract.skill.LayoutError`. In a
+layout, an object held from the first frame is taken where the layout starts it.
 """
 
 from __future__ import annotations
@@ -37,17 +44,19 @@ import time
 import numpy as np
 
 from warpskill.contract.reconstruction import Reconstruction
-from warpskill.contract.skill import Layout, Skill, skill_from
+from warpskill.contract.skill import SWING_SPEED, Layout, Skill, skill_from
 from warpskill.robot.grasps import FIT_MARGIN, GraspPose, candidate_poses, rank_poses
 from warpskill.robot.model import HOME_Q, MAX_OPENING, Placement, Scene, make_scene
-from warpskill.robot.placement import check_reach, rank_placements, reach_excess
+from warpskill.robot.placement import WRIST, check_reach, rank_placements, reach_excess
 from warpskill.robot.plan import PlanError, RobotPlan
 from warpskill.robot.planner import DT, Planner
 from warpskill.robot.sizes import clear_path, fit_sizes, rest_until
 from warpskill.robot.targets import (
     PREGRASP,
+    hold_pose,
     key_targets,
     lift_clear,
+    onto_release,
     plan_targets,
     pose_matrix,
     support_height,
@@ -74,7 +83,7 @@ SLOWDOWNS = (1.0, 1.7, 3.0)  # the demonstration is replayed this many times slo
 PLANNED_POSES = 4  # feasible grasp poses planned in full per placement
 SCORED_POSES = 2  # grasp poses whose key poses score a placement
 FULL_PLANS = 3  # placements planned in full (auto), best first
-CARRY_SPEED = 1.7  # [m/s] fastest demonstrated object the robot takes over (the Panda's Cartesian speed limit)
+CARRY_SPEED = SWING_SPEED  # [m/s] fastest demonstrated object the robot takes over (the Panda's Cartesian speed limit)
 
 
 def retarget(recon: Reconstruction | Skill, *, layout: Layout | None = None, placement: Placement | str | None = AUTO,
@@ -99,8 +108,9 @@ def retarget(recon: Reconstruction | Skill, *, layout: Layout | None = None, pla
     Raises:
         PlanError: no feasible grasp or an unreachable target; the message names the
             reconstruction frame and why.
-        LayoutError: a layout the skill cannot be carried to, or out of the Panda's reach
-            (one line naming why).
+        LayoutError: a layout the skill cannot be carried to, or whose held path does not
+            keep :data:`~warpskill.robot.placement.REACH_MARGIN` inside the Panda's reach from
+            any base placement (one line naming why).
         ValueError: sizes of the wrong shape or count.
     """
     started = time.perf_counter()
@@ -113,13 +123,15 @@ def retarget(recon: Reconstruction | Skill, *, layout: Layout | None = None, pla
         recon = skill.apply(layout)
         check_reach(recon, None if auto else placement)
     recon, note = robot_reconstruction(recon, placement=Placement() if auto else placement, object_size=object_size,
-                                       static_sizes=static_sizes, keep_size=keep_size)
+                                       static_sizes=static_sizes, keep_size=keep_size,
+                                       onset=0 if layout is not None else None)
     task = _task(recon)
     if auto:
         scene0 = make_scene(recon)
-        keys = [key_targets(recon, scene0, pose, task["k_on"], task["k_off"]) for _, _, pose in
-                task["ranked"][:SCORED_POSES]]
-        placements = rank_placements(recon, keys, count=FULL_PLANS)
+        scored = [pose for _, _, pose in task["ranked"][:SCORED_POSES]]
+        keys = [key_targets(recon, scene0, pose, task["k_on"], task["k_off"]) for pose in scored]
+        paths = [_path_wrists(recon, scene0, pose, task["k_on"], task["k_off"]) for pose in scored]
+        placements = rank_placements(recon, keys, count=FULL_PLANS, paths=paths)
     else:
         placements = [placement]
     errors = []
@@ -146,7 +158,8 @@ def retarget(recon: Reconstruction | Skill, *, layout: Layout | None = None, pla
 
 
 def robot_reconstruction(recon: Reconstruction, *, placement: Placement = Placement(), object_size=None,
-                         static_sizes=None, keep_size: bool = False) -> tuple[Reconstruction, str]:
+                         static_sizes=None, keep_size: bool = False,
+                         onset: int | None = None) -> tuple[Reconstruction, str]:
     """The reconstruction as the robot performs it, and :func:`~warpskill.robot.sizes.fit_sizes`' note.
 
     The cuboids get the robot's sizes (:func:`~warpskill.robot.sizes.fit_sizes`). An object
@@ -164,10 +177,17 @@ def robot_reconstruction(recon: Reconstruction, *, placement: Placement = Placem
     while held). This is the one place that decides the object's start: the plan carries the
     result (:meth:`RobotPlan.scene`), which the replays and the video simulate.
 
+    A layout's reconstruction (:meth:`~warpskill.contract.skill.Skill.apply`) starts a
+    carried-in object resting on the table at its take-over pose, where the robot is to take
+    it: ``onset=0`` takes it there, on the layout's path as it is (sizes fitted, path cleared),
+    whichever placement the search then finds.
+
     Args:
         recon: the reconstruction.
         placement: where the robot stands (for an object held from the first frame).
         object_size, static_sizes, keep_size: as for :func:`retarget`.
+        onset: the held frame at which the robot takes an object held from the first frame
+            (None: the first one it can, as above).
 
     Raises:
         ValueError: sizes of the wrong shape or count.
@@ -177,6 +197,10 @@ def robot_reconstruction(recon: Reconstruction, *, placement: Placement = Placem
         return clear_path(fitted), note
     held = np.flatnonzero(fitted.grasped > 0.5)
     taken_at = lambda k: clear_path(rest_until(fitted, int(k)))  # noqa: E731
+    if onset == 0:  # a layout's: the object rests at its start already; the path is the layout's
+        return clear_path(fitted), note
+    if onset is not None:
+        return taken_at(held[np.searchsorted(held, onset)] if onset <= held[-1] else held[-1]), note
     base = make_scene(taken_at(held[-1]), placement).base
     speed = np.append(np.linalg.norm(np.diff(recon.object_pos, axis=0), axis=1) * float(recon.fps), 0.0)  # (F,)
     for k in held[speed[held] <= CARRY_SPEED]:
@@ -206,6 +230,15 @@ def _reachable(recon: Reconstruction, base: np.ndarray) -> bool:
     planner = Planner(scene)
     T_on = pose_matrix(recon.object_pos[k_on], recon.object_rot[k_on])
     return any(_grasp_ik(planner, T_on, pose)[0] is not None for pose in near)
+
+
+def _path_wrists(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int, k_off: int | None) -> np.ndarray:
+    """(M, 3) the wrist points of ``pose``'s whole held path: every reconstruction frame from the
+    grasp onset to the release (or the end), and the pre-grasp and the retreat."""
+    end = k_off if k_off is not None else recon.num_frames - 1
+    poses = [hold_pose(recon, scene, pose, k_on, k_off, float(recon.t[k]), np.zeros(3)) for k in range(k_on, end + 1)]
+    poses += key_targets(recon, scene, pose, k_on, k_off)
+    return np.array([T[:3, 3] - WRIST * T[:3, 2] for T in poses])
 
 
 def _grasp_ik(planner: Planner, T_on: np.ndarray, pose: GraspPose) -> tuple[np.ndarray | None, str]:
@@ -267,9 +300,15 @@ def _plan_at(recon: Reconstruction, scene: Scene, task: dict) -> RobotPlan:
     planner = Planner(scene)
     T_on = pose_matrix(recon.object_pos[k_on], recon.object_rot[k_on])
     T_off = None
+    onto = None  # a put onto's move of the release onto the static box's top
     if k_off is not None and not task["pushing"]:
         T_off = pose_matrix(recon.object_pos[k_off], recon.object_rot[k_on])
-        T_off = lift_clear(T_off, recon.object_size, support_height(scene, T_off, recon.object_size))
+        if str(recon.action) == "put_onto" and len(scene.static_pos):
+            placed = onto_release(scene, T_off, recon.object_size)
+            onto, T_off = placed[:3, 3] - T_off[:3, 3], placed
+        else:
+            T_off = lift_clear(T_off, recon.object_size, support_height(scene, T_off, recon.object_size))
+    task = {**task, "onto": onto}
     rejected = []  # (pose name, why)
     failures = []
     planner.set_q(HOME_Q, MAX_OPENING)
@@ -322,14 +361,16 @@ def _feasible(planner: Planner, scene: Scene, task: dict, T_on: np.ndarray, T_of
                 continue
             shift = np.zeros(3)
             if T_off is not None and pose.kind == "grasp":
-                shift, why_off = _release_shift(planner, scene, T_off, pose)
+                onto = task["onto"] is not None
+                shift, why_off = _release_shift(planner, scene, T_off, pose, shifts=() if onto else RELEASE_SHIFTS)
                 if shift is None:
-                    rejected.append((pose.name, f"at the release (frame {k_off}): {why_off}"))
+                    what = "the release on the static box's top" if onto else "the release"
+                    rejected.append((pose.name, f"at {what} (frame {k_off}): {why_off}"))
                     continue
             cost = angle + _penalty(pose, task["height"]) + 10.0 * float(np.abs(q - HOME_Q).sum())
             cost += SHIFT_PENALTY * float(np.linalg.norm(shift))
             cost += FAR_SHIFT_PENALTY if np.linalg.norm(shift) > NEAR_SHIFT + 1e-9 else 0.0
-            heapq.heappush(ready, (cost, i, pose, shift))
+            heapq.heappush(ready, (cost, i, pose, shift if task["onto"] is None else shift + task["onto"]))
         if not ready:
             return
         cost, _, pose, shift = heapq.heappop(ready)
@@ -350,12 +391,14 @@ def _push_direction(recon: Reconstruction, k_on: int, k_off: int | None, hand_ax
     return displacement if str(recon.action).startswith("push_") else -displacement
 
 
-def _release_shift(planner: Planner, scene: Scene, T_off: np.ndarray, pose: GraspPose):
+def _release_shift(planner: Planner, scene: Scene, T_off: np.ndarray, pose: GraspPose,
+                   shifts: tuple[float, ...] = RELEASE_SHIFTS):
     """The smallest horizontal move of the set-down pose ``T_off`` that the gripper can reach.
 
     A finger needs room beside the object: where the demonstration sets the object down
     closer to a static box than a finger's thickness, the set-down place is moved away from
-    the nearest static box along the finger axis by one of :data:`RELEASE_SHIFTS`.
+    the nearest static box along the finger axis by one of ``shifts`` (default
+    :data:`RELEASE_SHIFTS`; none for a put onto, whose release stays on the box's top).
 
     Returns:
         ``(shift (3,) [m], "")`` or ``(None, why)``.
@@ -368,7 +411,7 @@ def _release_shift(planner: Planner, scene: Scene, T_off: np.ndarray, pose: Gras
     why = reachable(T_off)
     if not why:
         return np.zeros(3), ""
-    if len(scene.static_pos) == 0:
+    if len(scene.static_pos) == 0 or not shifts:
         return None, why
     fingers = (T_off @ pose.pose)[:3, 1].copy()
     fingers[2] = 0.0
@@ -377,11 +420,11 @@ def _release_shift(planner: Planner, scene: Scene, T_off: np.ndarray, pose: Gras
     fingers /= np.linalg.norm(fingers)
     nearest = scene.static_pos[np.argmin(np.linalg.norm(scene.static_pos - T_off[:3, 3], axis=1))]
     away = fingers if fingers @ (T_off[:3, 3] - nearest) >= 0 else -fingers
-    for distance in RELEASE_SHIFTS:
+    for distance in shifts:
         shifted = translate(*(distance * away)) @ T_off
         if not reachable(shifted):
             return distance * away, ""
-    return None, f"{why}; also when set down up to {100 * RELEASE_SHIFTS[-1]:.0f} cm further from the static box"
+    return None, f"{why}; also when set down up to {100 * shifts[-1]:.0f} cm further from the static box"
 
 
 def _plan(recon: Reconstruction, scene: Scene, planner: Planner, pose: GraspPose, k_on: int, k_off: int | None,

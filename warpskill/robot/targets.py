@@ -31,6 +31,7 @@ import numpy as np
 
 from warpskill.contract.geometry import cuboid_corners, min_jerk
 from warpskill.contract.reconstruction import Reconstruction
+from warpskill.contract.skill import ONTO_INSET
 from warpskill.robot.grasps import GraspPose
 from warpskill.robot.model import FINGER_SPEED, MAX_OPENING, Scene
 from warpskill.robot.plan import CLOSE_TIME, OPEN_TIME
@@ -43,6 +44,7 @@ __all__ = [
     "hold_pose",
     "key_targets",
     "lift_clear",
+    "onto_release",
     "plan_targets",
     "pose_matrix",
     "support_height",
@@ -61,6 +63,9 @@ RETREAT = 0.10  # [m] back-off along the approach after the release
 RETREAT_TIME = 0.6  # [s]
 SETTLE = 0.5  # [s] still time at the end
 CLEARANCE = 0.003  # [m] a carried object is kept this far above its support
+ONTO_CLEARANCE = 0.005
+"""[m] a put onto lets go with the carried object's bottom this far above the static box's top:
+released lower, the fingers would press it into the top; higher, it drops and may bounce off."""
 HOLD_KEYS = 3  # held-object samples among the key targets
 
 
@@ -112,6 +117,26 @@ def lift_clear(T_obj: np.ndarray, size: np.ndarray, floor: float) -> np.ndarray:
         T_obj = T_obj.copy()
         T_obj[2, 3] += lift
     return T_obj
+
+
+def onto_release(scene: Scene, T_off: np.ndarray, size: np.ndarray, static: int = 0) -> np.ndarray:
+    """The put-onto release pose of the object (pose ``T_off`` (4, 4) at the demonstrated release,
+    edge lengths ``size`` (3,): the carried object's own) on static box ``static``'s top.
+
+    The centre is moved horizontally into the top (:data:`~warpskill.contract.skill.ONTO_INSET` inside its edges, in the
+    box's frame) and vertically so that the object's lowest corner is :data:`ONTO_CLEARANCE`
+    above the box's reconstructed top; the orientation is kept.
+    """
+    R, c, half_box = scene.static_rot[static], scene.static_pos[static], scene.static_size[static] / 2
+    local = R.T @ (T_off[:3, 3] - c)
+    limit = np.maximum(half_box[:2] - ONTO_INSET, 0.5 * half_box[:2])
+    local[:2] = np.clip(local[:2], -limit, limit)
+    placed = T_off.copy()
+    placed[:3, 3] = c + R @ local
+    top = float(cuboid_corners(c, R, scene.static_size[static])[:, 2].max())
+    bottom = float(cuboid_corners(placed[:3, 3], placed[:3, :3], size)[:, 2].min())
+    placed[2, 3] += top + ONTO_CLEARANCE - bottom
+    return placed
 
 
 def _in_object(recon: Reconstruction, point: np.ndarray) -> bool:
