@@ -17,10 +17,10 @@ import json
 import os
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from warpskill.contract.demonstration import DemonstrationError
+from warpskill.data.readers import read_video
 
 ANNOTATIONS = "annotations.json"
 SAME_OBJECT_IOU = 0.5
@@ -52,9 +52,9 @@ def read_footage(folder: str | os.PathLike, clips: list[str] | None = None) -> l
     """The clips of a real-footage folder (all, or those named in ``clips``), in the file's order.
 
     Raises:
-        FileNotFoundError: no ``annotations.json`` or no frames for a clip.
-        DemonstrationError: an annotation file that is not ``{id: [frame entries]}`` or a
-            clip id it lacks.
+        FileNotFoundError: no ``annotations.json`` or no frames folder for a clip.
+        DemonstrationError: an annotation file that is not ``{id: [frame entries]}``, a
+            clip id it lacks, or a clip folder without frames ``0001.jpg``, ...
     """
     folder = Path(folder)
     with open(folder / ANNOTATIONS) as handle:
@@ -69,10 +69,7 @@ def read_footage(folder: str | os.PathLike, clips: list[str] | None = None) -> l
 
 def _clip(folder: Path, clip_id: str, entries: list[dict]) -> FootageClip:
     """One clip's frames and boxes."""
-    paths = sorted((folder / "frames" / clip_id).glob("*.jpg"))
-    if not paths:
-        raise FileNotFoundError(f"{folder / 'frames' / clip_id}: no frames")
-    frames = np.stack([cv2.cvtColor(cv2.imread(str(path)), cv2.COLOR_BGR2RGB) for path in paths])
+    frames, _ = read_video(folder / "frames" / clip_id / "%04d.jpg")
     n = len(frames)
     boxes: dict[str, np.ndarray] = {}
     annotated = np.zeros(n, dtype=bool)

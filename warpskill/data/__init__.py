@@ -22,7 +22,6 @@ from warpskill.data.footage import footage_masks
 from warpskill.data.hand_landmarks import find_hands
 from warpskill.data.masks import clean_masks
 from warpskill.data.propagation import propagate_masks, read_labelme, read_polygons
-from warpskill.data.recording import contact_sheet, prepare_recording, read_contact, read_recording
 from warpskill.data.readers import (
     read_label_images,
     read_mask_folders,
@@ -30,6 +29,7 @@ from warpskill.data.readers import (
     read_video,
     read_video_demonstration,
 )
+from warpskill.data.recording import contact_sheet, prepare_recording, read_contact, read_recording
 
 __all__ = [
     "SomethingElseVideo",

@@ -27,6 +27,7 @@ import numpy as np
 
 from warpskill.contract.demonstration import DemonstrationError
 from warpskill.contract.signals import majority_filter
+from warpskill.data.hand_landmarks import FINGERTIPS, INDEX_KNUCKLE, PINKY_KNUCKLE
 
 IN_CONTACT, NO_CONTACT, UNKNOWN = 1, 0, -1
 
@@ -129,12 +130,6 @@ def detections_from_masks(
     return detections
 
 
-FINGERTIPS = (4, 8, 12, 16, 20)
-"""Indices of the thumb's and the fingers' tips among the 21 hand landmarks (MediaPipe's order)."""
-
-KNUCKLES = (5, 17)
-"""Indices of the index finger's and the little finger's knuckles: the palm's breadth between them."""
-
 TOUCH_BREADTHS = 0.25
 """A fingertip this close to the object's mask, in palm breadths, touches it (about 2 cm of a
 hand, a finger's width: a fingertip resting on the object lies on or just beside its visible
@@ -172,7 +167,7 @@ def detections_from_landmarks(
         distance = cv2.distanceTransform((~obj).astype(np.uint8), cv2.DIST_L2, 3)
         tips = np.round(points[list(FINGERTIPS)] - 0.5).astype(int)
         inside = (tips[:, 0] >= 0) & (tips[:, 0] < w) & (tips[:, 1] >= 0) & (tips[:, 1] < h)
-        breadth = float(np.linalg.norm(points[KNUCKLES[0]] - points[KNUCKLES[1]]))
+        breadth = float(np.linalg.norm(points[INDEX_KNUCKLE] - points[PINKY_KNUCKLE]))
         near = distance[tips[inside, 1], tips[inside, 0]] <= touch_breadths * breadth
         detections[k] = IN_CONTACT if near.any() else NO_CONTACT
     return detections

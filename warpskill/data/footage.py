@@ -39,14 +39,13 @@ import numpy as np
 
 from warpskill.contract.nouns import HAND_BREADTH
 from warpskill.data.contact import (
-    FINGERTIPS,
     UNKNOWN,
     detections_from_landmarks,
     detections_from_masks,
     filter_contact,
 )
 from warpskill.data.following import follow_outlines, visible_masks
-from warpskill.data.hand_landmarks import find_hands, hand_size
+from warpskill.data.hand_landmarks import FINGERTIPS, MIDDLE_KNUCKLE, WRIST, find_hands, hand_size
 from warpskill.data.hand_regions import hand_regions
 from warpskill.data.hands import choose_hand, hand_masks
 
@@ -54,9 +53,6 @@ MODEL_HAND_WIDTH, MODEL_HAND_LENGTH = 0.08, 0.40
 """[m] the optimiser's hand: a cylinder 8 cm across and 40 cm long
 (``warpskill.engine.primitives.HAND_RADIUS`` x 2 and ``HAND_LENGTH``; a test holds them
 equal, as the data layer does not import the engine)."""
-
-WRIST, MIDDLE_KNUCKLE = 0, 9
-"""Indices of the wrist and the middle finger's knuckle among the 21 hand landmarks."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -104,12 +100,13 @@ def footage_masks(frames: np.ndarray, key_frame: int, key_masks: dict[str, np.nd
     for landmarks in tracks.all_landmarks():
         every_hand |= hand_masks(landmarks, (h, w), forearm=True)
     whole = follow_outlines(frames, key_frame, key_masks, occluder=every_hand)
-    landmarks = choose_hand(tracks, visible_masks(whole, every_hand)["object"])
-    contact = _contact(landmarks, regions, whole["object"], visible_masks(whole, every_hand)["object"])
+    objects = visible_masks(whole, every_hand)
+    landmarks = choose_hand(tracks, objects["object"])
+    contact = _contact(landmarks, regions, whole["object"], objects["object"])
     if contact.any():  # followed again: where held, the object moves with the hand
         whole = follow_outlines(frames, key_frame, key_masks, occluder=every_hand, carried={"object": contact})
-        contact = _contact(landmarks, regions, whole["object"], visible_masks(whole, every_hand)["object"])
-    objects = visible_masks(whole, every_hand)
+        objects = visible_masks(whole, every_hand)
+        contact = _contact(landmarks, regions, whole["object"], objects["object"])
     return FootageMasks(
         hand=model_hand_masks(landmarks, (h, w)) | regions,
         found_hand=hand_masks(landmarks, (h, w), forearm=False) | regions,

@@ -66,6 +66,9 @@ HAND_LANDMARKS = 21
 WRIST, INDEX_KNUCKLE, MIDDLE_KNUCKLE, PINKY_KNUCKLE = 0, 5, 9, 17
 """Indices of the wrist and the index, middle and little finger's knuckles (MCP joints)."""
 
+FINGERTIPS = (4, 8, 12, 16, 20)
+"""Indices of the thumb's and the fingers' tips."""
+
 MIDDLE_FINGER = (9, 10, 11, 12)
 """The middle finger's chain, knuckle to tip."""
 
