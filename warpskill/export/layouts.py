@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections import Counter
 from collections.abc import Iterator
 
 import numpy as np
@@ -98,19 +99,27 @@ def layouts(skill: Skill, *, seed: int = 0, table: ReachableTable | None = None)
 
     Raises:
         LayoutError: :data:`MAX_DRAWS` draws in a row were all refused (a skill whose path
-            does not fit on the sector).
+            does not fit on the sector); the message names the commonest reasons.
     """
     table = table or ReachableTable.of(skill)
     rng = np.random.default_rng(seed)
     while True:
+        refusals: Counter[str] = Counter()
         for _ in range(MAX_DRAWS):
             layout = _draw(skill, table, rng)
-            if _sensible(skill, layout, table):
+            reason = _refusal(skill, layout, table)
+            if not reason:
                 yield layout
                 break
+            refusals[reason] += 1
         else:
-            raise LayoutError(f"no layout of the {skill.action} skill fits the reachable table "
-                              f"in {MAX_DRAWS} draws")
+            raise LayoutError(f"no layout of the {skill.action} skill fits the reachable table in {MAX_DRAWS} "
+                              f"draws ({_commonest(refusals)})")
+
+
+def _commonest(refusals: Counter[str], shown: int = 2) -> str:
+    """The ``shown`` commonest refusal reasons with their counts, e.g. ``"out of reach: 870, ..."``."""
+    return ", ".join(f"{reason}: {count}" for reason, count in refusals.most_common(shown))
 
 
 def sample_layouts(skill: Skill, count: int, *, seed: int = 0, table: ReachableTable | None = None) -> list[Layout]:
@@ -126,32 +135,30 @@ def _draw(skill: Skill, table: ReachableTable, rng: np.random.Generator) -> Layo
     return Layout(object=pose(), statics=tuple(pose() for _ in range(skill.num_static)))
 
 
-def _sensible(skill: Skill, layout: Layout, table: ReachableTable) -> bool:
-    """Whether the start footprints are apart and clear of the robot's base, the skill applies
-    and its object path stays on the table."""
+def _refusal(skill: Skill, layout: Layout, table: ReachableTable) -> str:
+    """Why ``layout`` is refused (the module doc's conditions, in a few words), or "" if it is kept."""
     try:
         recon = skill.apply(layout)
     except LayoutError:
-        return False
+        return "boxes overlap on the path"
     boxes = [(recon.object_pos[0], recon.object_rot[0], recon.object_size),
              *zip(recon.static_pos, recon.static_rot, recon.static_size)]
     # Footprints: each pair compared at one height (an object held from the first frame may start
     # lifted over a box it stands on).
     level = lambda box, z: (np.array([*box[0][:2], z]), *box[1:])  # noqa: E731
-    apart = all(overlap_depth(*boxes[i], *level(boxes[j], boxes[i][0][2])) == 0.0
-                for i in range(len(boxes)) for j in range(i + 1, len(boxes)))
-    clear = all(table.clear_of_base(*box) for box in boxes)
-    if not (apart and clear):
-        return False
+    if not all(overlap_depth(*boxes[i], *level(boxes[j], boxes[i][0][2])) == 0.0
+               for i in range(len(boxes)) for j in range(i + 1, len(boxes))):
+        return "start footprints touch"
     path = zip(recon.object_pos, recon.object_rot)
-    if not all(table.clear_of_base(pos, rot, recon.object_size) for pos, rot in path):
-        return False
+    if not (all(table.clear_of_base(*box) for box in boxes)
+            and all(table.clear_of_base(pos, rot, recon.object_size) for pos, rot in path)):
+        return "too near the robot's base"
     if recon.grasped[0] > HELD and recon.object_corners()[0, :, 2].min() > START_HEIGHT:
-        return False  # a carried-in object lifted at once over a box beside its start
+        return "carried-in object starts lifted"  # over a box beside its start
     if np.max(np.linalg.norm(np.diff(recon.object_pos, axis=0), axis=1)) * float(recon.fps) > SWING_SPEED:
-        return False  # the put's path bent so far towards the box that it swings
+        return "path swings too fast"  # the put's path bent so far towards the box
     try:
         check_reach(recon)
     except LayoutError:
-        return False
-    return True
+        return "out of reach"
+    return ""

@@ -5,20 +5,22 @@ writes the layout ``lerobot.datasets.LeRobotDataset`` reads (``docs/formats.md``
 *LeRobot dataset*), without depending on ``lerobot``:
 
 - ``data/chunk-000/file-000.parquet``: one row per frame, every episode in one file (one
-  row group per episode): the vector features as fixed-size float32 lists, ``timestamp``
+  row group per episode): the vector features as fixed-size float32 lists, the scalar
+  features (float32 or bool, e.g. ``next.reward``, ``next.done``) as plain columns, ``timestamp``
   (float32 [s], ``frame_index / fps``), ``frame_index``, ``episode_index``, ``index`` (over
   the dataset), ``task_index`` (int64);
 - ``videos/<camera key>/chunk-000/file-000.mp4``: per camera every episode back to back
   in one H.264 stream at ``fps``, frame k at time k / fps exactly;
 - ``meta/episodes/chunk-000/file-000.parquet``: one row per episode: its length, tasks,
   data rows (``dataset_from_index`` .. ``dataset_to_index``), file indices, the time span
-  of each video (``videos/<key>/from_timestamp`` .. ``to_timestamp`` [s]) and its own stats
-  (``stats/<feature>/<stat>``);
+  of each video (``videos/<key>/from_timestamp`` .. ``to_timestamp`` [s]), its own stats
+  (``stats/<feature>/<stat>``) and any columns the caller adds (labels, provenance);
 - ``meta/tasks.parquet``: the task texts (the pandas index ``task``) and ``task_index``;
 - ``meta/stats.json``: per feature ``min``, ``max``, ``mean``, ``std``, ``count`` and the
   quantiles ``q01`` .. ``q99``; camera features per channel (3, 1, 1), pixels in [0, 1];
 - ``meta/info.json``: ``codebase_version``, ``fps``, ``features`` (dtype, shape, names;
-  the videos' codec info), totals, ``splits``, the path templates and file sizes.
+  the videos' codec info; any further keys the caller gives per feature, e.g. units), totals,
+  ``splits``, the path templates and file sizes, and any top-level keys the caller adds.
 
 One chunk and one file per kind: a dataset over ``DATA_FILE_MB`` of table data is refused
 rather than split (a few hundred thousand frames of robot state).
@@ -48,6 +50,7 @@ VIDEO_FILE_MB = 200  # [MB] lerobot's default largest video file (recorded in in
 DATA_PATH = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
 EPISODES_PATH = "meta/episodes/chunk-000/file-000.parquet"
+SCALAR_DTYPES = {"float32": (pa.float32(), np.float32), "bool": (pa.bool_(), np.bool_)}  # per-frame scalars
 QUANTILES = (0.01, 0.10, 0.50, 0.90, 0.99)  # lerobot's default quantiles, stats keys q01 .. q99
 INDEX_FEATURES = ("timestamp", "frame_index", "episode_index", "index", "task_index")
 
@@ -152,25 +155,34 @@ class LeRobotWriter:
         vectors: feature key -> names of its entries, e.g.
             ``{"observation.state": ["joint1", ...], "action": [...]}`` (float32 vectors).
         cameras: camera feature key (``observation.images.<name>``) -> (height, width) [px], even sizes.
+        scalars: feature key -> dtype (``"float32"`` or ``"bool"``) of one value per frame.
+        feature_info: feature key -> further keys of its entry in ``info.json`` (units, conventions).
+        info: further top-level keys of ``info.json`` (camera calibrations).
         robot_type: ``info.json``'s ``robot_type``.
     """
 
     def __init__(self, root: Path, *, fps: int, vectors: dict[str, list[str]], cameras: dict[str, tuple[int, int]],
-                 robot_type: str = "franka_panda"):
+                 scalars: dict[str, str] | None = None, feature_info: dict[str, dict] | None = None,
+                 info: dict | None = None, robot_type: str = "franka_panda"):
         root = Path(root)
         if root.exists() and any(root.iterdir()):
             raise LeRobotError(f"{root}: the dataset folder must be empty")
         if int(fps) != fps or fps <= 0:
             raise LeRobotError(f"fps: LeRobot needs a positive integer frame rate, got {fps}")
+        scalars = dict(scalars or {})
+        if not set(scalars.values()) <= set(SCALAR_DTYPES):
+            raise LeRobotError(f"scalars: dtypes must be among {sorted(SCALAR_DTYPES)}, got {scalars}")
         for key, (height, width) in cameras.items():
             if height % 2 or width % 2:
                 raise LeRobotError(f"{key}: H.264 in yuv420p needs even frame sizes, got {height} x {width}")
         self.root, self.fps, self.robot_type = root, int(fps), robot_type
         self.vectors = {key: list(names) for key, names in vectors.items()}
-        self.cameras = dict(cameras)
+        self.cameras, self.scalars = dict(cameras), scalars
+        self.feature_info, self.info = dict(feature_info or {}), dict(info or {})
         self.tasks: dict[str, int] = {}
         self.episodes: list[dict] = []
-        self.stats: dict[str, list[dict]] = {key: [] for key in [*self.vectors, *self.cameras, *INDEX_FEATURES]}
+        self.stats: dict[str, list[dict]] = {key: [] for key in [*self.vectors, *self.scalars, *self.cameras,
+                                                                  *INDEX_FEATURES]}
         self.frames = 0
         self.videos = {key: _VideoStream(root / VIDEO_PATH.format(video_key=key, chunk_index=0, file_index=0),
                                          self.fps, size) for key, size in self.cameras.items()}
@@ -180,33 +192,40 @@ class LeRobotWriter:
 
     def _schema(self) -> pa.Schema:
         fields = [pa.field(key, pa.list_(pa.float32(), len(names))) for key, names in self.vectors.items()]
+        fields += [pa.field(key, SCALAR_DTYPES[dtype][0]) for key, dtype in self.scalars.items()]
         fields.append(pa.field("timestamp", pa.float32()))
         fields += [pa.field(name, pa.int64()) for name in INDEX_FEATURES[1:]]
         return pa.schema(fields)
 
-    def add_episode(self, vectors: dict[str, np.ndarray], frames: dict[str, np.ndarray], task: str) -> int:
+    def add_episode(self, vectors: dict[str, np.ndarray], frames: dict[str, np.ndarray], task: str, *,
+                    scalars: dict[str, np.ndarray] | None = None, columns: dict | None = None) -> int:
         """Append one episode; returns its index.
 
         Args:
             vectors: feature key -> (T, D) values, for every key given to the constructor.
             frames: camera key -> (T, H, W, 3) uint8 RGB, for every camera.
             task: what the episode does, in words.
+            scalars: feature key -> (T,) values, for every scalar key given to the constructor.
+            columns: further columns of the episode's row in ``meta/episodes`` (name -> a
+                JSON-like value; the same names and kinds for every episode).
 
         Raises:
             LeRobotError: a missing or extra key, a wrong shape, lengths that differ.
         """
-        length = self._checked_length(vectors, frames)
+        scalars = dict(scalars or {})
+        length = self._checked_length(vectors, frames, scalars)
         episode = len(self.episodes)
         task_index = self.tasks.setdefault(task, len(self.tasks))
         frame_index = np.arange(length, dtype=np.int64)
-        columns = {key: np.asarray(vectors[key], np.float32) for key in self.vectors}
-        columns.update(timestamp=(frame_index / self.fps).astype(np.float32), frame_index=frame_index,
+        values = {key: np.asarray(vectors[key], np.float32) for key in self.vectors}
+        values.update({key: np.asarray(scalars[key], SCALAR_DTYPES[dtype][1]) for key, dtype in self.scalars.items()})
+        values.update(timestamp=(frame_index / self.fps).astype(np.float32), frame_index=frame_index,
                        episode_index=np.full(length, episode, np.int64),
                        index=np.arange(self.frames, self.frames + length, dtype=np.int64),
                        task_index=np.full(length, task_index, np.int64))
-        arrays = [pa.FixedSizeListArray.from_arrays(pa.array(columns[key].reshape(-1)), len(names))
+        arrays = [pa.FixedSizeListArray.from_arrays(pa.array(values[key].reshape(-1)), len(names))
                   for key, names in self.vectors.items()]
-        arrays += [pa.array(columns[name]) for name in INDEX_FEATURES]
+        arrays += [pa.array(values[name]) for name in [*self.scalars, *INDEX_FEATURES]]
         self.data.write_table(pa.Table.from_arrays(arrays, schema=self.data.schema))
         row = {"episode_index": episode, "tasks": [task], "length": length,
                "data/chunk_index": 0, "data/file_index": 0,
@@ -217,20 +236,24 @@ class LeRobotWriter:
             row.update({f"videos/{key}/chunk_index": 0, f"videos/{key}/file_index": 0,
                         f"videos/{key}/from_timestamp": start, f"videos/{key}/to_timestamp": video.frames / self.fps})
             self.stats[key].append(_image_stats(frames[key]))
-        for key in [*self.vectors, *INDEX_FEATURES]:
-            self.stats[key].append(feature_stats(columns[key].reshape(length, -1)))
-        row.update({"meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0})
+        for key in [*self.vectors, *self.scalars, *INDEX_FEATURES]:
+            self.stats[key].append(feature_stats(values[key].reshape(length, -1)))
+        row.update({"meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0, **(columns or {})})
         for key, parts in self.stats.items():
             row.update({f"stats/{key}/{name}": value.tolist() for name, value in parts[-1].items()})
         self.episodes.append(row)
         self.frames += length
         return episode
 
-    def _checked_length(self, vectors: dict, frames: dict) -> int:
-        if set(vectors) != set(self.vectors) or set(frames) != set(self.cameras):
-            raise LeRobotError(f"episode: expected vectors {sorted(self.vectors)} and cameras {sorted(self.cameras)}, "
-                               f"got {sorted(vectors)} and {sorted(frames)}")
-        lengths = set()
+    def _checked_length(self, vectors: dict, frames: dict, scalars: dict) -> int:
+        if set(vectors) != set(self.vectors) or set(frames) != set(self.cameras) or set(scalars) != set(self.scalars):
+            raise LeRobotError(f"episode: expected vectors {sorted(self.vectors)}, scalars {sorted(self.scalars)} and "
+                               f"cameras {sorted(self.cameras)}, got {sorted(vectors)}, {sorted(scalars)} and "
+                               f"{sorted(frames)}")
+        lengths = {len(values) for values in scalars.values()}
+        for key, values in scalars.items():
+            if np.ndim(values) != 1:
+                raise LeRobotError(f"{key}: expected (T,) values, got shape {np.shape(values)}")
         for key, names in self.vectors.items():
             shape = np.shape(vectors[key])
             if len(shape) != 2 or shape[1] != len(names):
@@ -268,17 +291,20 @@ class LeRobotWriter:
     def _info(self, video_info: dict[str, dict]) -> dict:
         features = {key: {"dtype": "float32", "shape": [len(names)], "names": names}
                     for key, names in self.vectors.items()}
+        features.update({key: {"dtype": dtype, "shape": [1], "names": None} for key, dtype in self.scalars.items()})
         for key, (height, width) in self.cameras.items():
             features[key] = {"dtype": "video", "shape": [height, width, 3], "names": ["height", "width", "channels"],
                              "info": video_info[key]}
         features["timestamp"] = {"dtype": "float32", "shape": [1], "names": None}
         features.update({name: {"dtype": "int64", "shape": [1], "names": None} for name in INDEX_FEATURES[1:]})
+        for key, extra in self.feature_info.items():
+            features[key].update(extra)
         return {"codebase_version": CODEBASE_VERSION, "robot_type": self.robot_type,
                 "total_episodes": len(self.episodes), "total_frames": self.frames, "total_tasks": len(self.tasks),
                 "chunks_size": CHUNKS_SIZE, "data_files_size_in_mb": DATA_FILE_MB,
                 "video_files_size_in_mb": VIDEO_FILE_MB, "fps": self.fps,
                 "splits": {"train": f"0:{len(self.episodes)}"}, "data_path": DATA_PATH,
-                "video_path": VIDEO_PATH if self.cameras else None, "features": features}
+                "video_path": VIDEO_PATH if self.cameras else None, "features": features, **self.info}
 
     def __enter__(self) -> "LeRobotWriter":
         return self
