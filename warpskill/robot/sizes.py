@@ -6,8 +6,9 @@ object-centre path in the horizontal plane and every static box's footprint cent
 heights follow the sizes, so that each static box keeps its bottom where it was and the
 object keeps its gap to its support (the table or a static top; while held, the support's
 change is blended linearly from the grasp to the release). Until the contact onset the
-object is made to rest on a face (:func:`upright`: a reconstruction's tilt would stand it
-on an edge, and a tall one would fall in the replay before the robot reaches it).
+object rests where the hand first touches it (nothing moves it before), on a face
+(:func:`upright`: a reconstruction's tilt would stand it on an edge, and a tall one would
+fall in the replay before the robot reaches it).
 
 An object already held in the first frame was carried into view (or moved before it) and
 never seen resting: :func:`rest_until` makes the robot's version of such a demonstration,
@@ -172,6 +173,20 @@ def _onset(recon: Reconstruction) -> int:
     return int(held[0]) if len(held) else 0
 
 
+def _still_until_onset(recon: Reconstruction) -> Reconstruction:
+    """``recon`` with the object at its onset pose in every frame before the grasp onset.
+
+    Nothing moves an object before the hand touches it: a reconstruction's drift there (a
+    6 cm slide of an untouched object) would leave the robot's grasp where the object is not.
+    """
+    k = _onset(recon)
+    if k == 0:
+        return recon
+    object_pos, object_rot = recon.object_pos.copy(), recon.object_rot.copy()
+    object_pos[:k], object_rot[:k] = object_pos[k], object_rot[k]
+    return dataclasses.replace(recon, object_pos=object_pos, object_rot=object_rot)
+
+
 def resting_axis(recon: Reconstruction) -> int:
     """The cuboid axis (0, 1 or 2) that is vertical while the object rests before the grasp.
 
@@ -221,11 +236,14 @@ def fit_sizes(recon: Reconstruction, *, object_size=None, static_sizes=None,
         notes.append(f"object: the {' x '.join(f'{s:.3f}' for s in old)} m cuboid is wider than the gripper's "
                      f"{USABLE_OPENING:.3f} m usable opening on every face: the robot handles a "
                      f"{' x '.join(f'{s:.3f}' for s in size)} m one (height kept; --keep-size refuses instead)")
+    given, recon = recon, _still_until_onset(recon)
     rot = recon.object_rot.copy()  # resting until the contact: it must rest on a face (later tilts are noise)
     rot[: _onset(recon) + 1] = upright(recon.object_rot[: _onset(recon) + 1])
-    if np.allclose(size, recon.object_size) and np.allclose(statics, recon.static_size) and \
-            np.allclose(rot, recon.object_rot, atol=1e-9):
-        return recon, "; ".join(notes)
+    unchanged = (np.allclose(size, given.object_size) and np.allclose(statics, given.static_size)
+                 and np.allclose(recon.object_pos, given.object_pos, atol=1e-9)
+                 and np.allclose(rot, given.object_rot, atol=1e-9))
+    if unchanged:
+        return given, "; ".join(notes)
     # Static boxes keep their bottoms.
     static_pos = recon.static_pos.copy()
     for k in range(recon.num_static):
