@@ -2,13 +2,16 @@
 
 For each layout of :func:`~warpskill.export.layouts.layouts`: the Panda's plan
 (:func:`warpskill.robot.retarget`), its MuJoCo replay judged by the action's criteria
-(:func:`warpskill.robot.replay`), and, where it succeeds, the same run once more sampled at
-the dataset's rate from the plan's start (home) to its end, with every camera rendered
-offscreen (:class:`Episode`). The physics is deterministic, so the filmed run is the judged one.
+(:func:`warpskill.robot.replay`), and, where it succeeds (or on request where it fails), the same
+run once more sampled at the dataset's rate from the plan's start (home) to its end, with every
+camera rendered offscreen and the tool centre point recorded (:class:`Episode`). The physics is
+deterministic, so the filmed run is the judged one. A refused layout or a failed replay is an
+:class:`Attempt` with its reason, never an error.
 
 The cameras (:data:`CAMERAS`) are fixed relative to the robot base, as cameras mounted on
 its table: ``front`` looks at the workspace from the robot's front left (the replay video's
-view), ``top`` from above.
+view), ``top`` from above; :meth:`Camera.calibration` gives each one's intrinsics and its pose in
+the robot base frame.
 """
 
 from __future__ import annotations
@@ -19,14 +22,16 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from warpskill.contract.skill import Layout, LayoutError, Skill
+from warpskill.contract.reconstruction import Reconstruction
+from warpskill.contract.skill import Layout, Skill
 from warpskill.export.layouts import layouts
 from warpskill.robot import replay, replay_mujoco, retarget
 from warpskill.robot.model import FINGER_JOINTS
-from warpskill.robot.plan import PlanError, RobotPlan
+from warpskill.robot.plan import RobotPlan
 from warpskill.robot.scene_config import load_scene_config
 
-__all__ = ["CAMERAS", "TASKS", "Camera", "Episode", "film", "rollouts"]
+__all__ = ["CAMERAS", "EE_POSE_NAMES", "ENGINE", "FOVY", "STATE_NAMES", "TASKS", "Attempt", "Calibration", "Camera",
+           "Episode", "attempt", "film", "film_attempt", "pose_vectors", "rollouts"]
 
 TASKS: dict[str, str] = {
     "pull_left_to_right": "pull the object from left to right",
@@ -43,6 +48,43 @@ TASKS: dict[str, str] = {
 
 STATE_NAMES = [f"panda_joint{i}" for i in range(1, 8)] + ["gripper_opening"]
 """``observation.state``: the simulated arm joints [rad] and finger distance [m]; ``action``: the commanded ones."""
+
+EE_POSE_NAMES = ["x", "y", "z", "qw", "qx", "qy", "qz"]
+"""``observation.ee_pose``: the tool centre point in the robot base frame, position [m] and quaternion (w first)."""
+
+ENGINE = "mujoco"
+"""The engine that judges and films every rollout."""
+
+
+FOVY = 45.0
+"""[deg] vertical field of view of every dataset camera (MuJoCo's free camera, ``model.vis.global_.fovy``)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Calibration:
+    """A dataset camera's pinhole model and its pose on the robot's table.
+
+    Attributes:
+        fx, fy, cx, cy: [px] focal lengths and principal point (OpenCV: pixel (0, 0) is the
+            centre of the top-left pixel, x right, y down).
+        width, height: [px] the frames' size.
+        base_from_camera: (4, 4) the camera's pose in the robot base frame (x forward, z up,
+            metres): maps camera coordinates (OpenCV axes: x right, y down, z along the view) to the base's.
+    """
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    width: int
+    height: int
+    base_from_camera: np.ndarray
+
+    def to_json(self) -> dict:
+        """The record as JSON-ready numbers (the pose as 4 rows of 4)."""
+        fields = dataclasses.asdict(self)
+        fields["base_from_camera"] = np.round(self.base_from_camera, 9).tolist()
+        return fields
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,6 +118,28 @@ class Camera:
         camera.elevation = self.elevation
         return camera
 
+    def base_from_camera(self) -> np.ndarray:
+        """(4, 4) the camera's pose in the robot base frame, OpenCV axes (see :class:`Calibration`).
+
+        MuJoCo's free camera sits ``distance`` behind the looked-at point along its viewing
+        direction (azimuth, elevation); its up vector is that direction turned 90 deg up.
+        """
+        azimuth, elevation = math.radians(self.azimuth), math.radians(self.elevation)
+        forward = np.array([math.cos(elevation) * math.cos(azimuth), math.cos(elevation) * math.sin(azimuth),
+                            math.sin(elevation)])
+        up = np.array([-math.sin(elevation) * math.cos(azimuth), -math.sin(elevation) * math.sin(azimuth),
+                       math.cos(elevation)])
+        pose = np.eye(4)
+        pose[:3, :3] = np.column_stack([np.cross(forward, up), -up, forward])
+        pose[:3, 3] = np.array([self.ahead, 0.0, self.height]) - self.distance * forward
+        return pose
+
+    def calibration(self, width: int, height: int) -> Calibration:
+        """Intrinsics of ``width`` x ``height`` px frames (square pixels, :data:`FOVY`) and the pose."""
+        focal = 0.5 * height / math.tan(math.radians(FOVY) / 2)
+        return Calibration(fx=focal, fy=focal, cx=(width - 1) / 2, cy=(height - 1) / 2, width=width, height=height,
+                           base_from_camera=self.base_from_camera())
+
 
 def _front() -> Camera:
     video = load_scene_config().video.camera
@@ -98,15 +162,21 @@ class Episode:
         layout: where it ran.
         state: (T, 8) simulated joints [rad] and finger distance [m] (:data:`STATE_NAMES`).
         action: (T, 8) the plan's commanded joints and finger distance at the same times.
+        ee_pose: (T, 7) the simulated tool centre point in the robot base frame (:data:`EE_POSE_NAMES`).
         frames: camera name -> (T, H, W, 3) uint8 RGB.
         task: the task text.
+        success: whether the replay achieved the action (the action's criteria on the whole rollout).
+        reason: why it failed ("" on success).
     """
 
     layout: Layout
     state: np.ndarray
     action: np.ndarray
+    ee_pose: np.ndarray
     frames: dict[str, np.ndarray]
     task: str
+    success: bool = True
+    reason: str = ""
 
 
 class _Filming:
@@ -122,7 +192,11 @@ class _Filming:
         import mujoco  # optional extra: robot (imported after prefer_headless_gl picks its GL)
 
         model.vis.quality.offsamples = 0  # software GL: no multisampling, no shadow or reflection passes
-        self.renderer = mujoco.Renderer(model, *self.size)
+        model.vis.global_.fovy = FOVY
+        height, width = self.size
+        model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+        model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+        self.renderer = mujoco.Renderer(model, height, width)
         self.renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
         self.renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
         self.views = [camera.view(self.base) for camera in self.cameras]
@@ -137,50 +211,89 @@ class _Filming:
             self.frames[camera.name].append(self.renderer.render().copy())
 
 
-def film(plan: RobotPlan, recon, *, fps: int, cameras: list[Camera], size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, dict]:
-    """Run ``plan`` in MuJoCo from its start to its end at ``fps``, rendering ``cameras``.
+def pose_vectors(poses: np.ndarray) -> np.ndarray:
+    """(T, 7) position [m] and unit quaternion (w, x, y, z) of (T, 4, 4) poses; the quaternions'
+    signs chosen continuous over T, the first with w >= 0."""
+    import mujoco  # optional extra: robot
+
+    quats = np.zeros((len(poses), 4))
+    for quat, pose in zip(quats, poses):
+        mujoco.mju_mat2Quat(quat, np.ascontiguousarray(pose[:3, :3], dtype=np.float64).reshape(9))
+    quats[0] *= 1.0 if quats[0, 0] >= 0 else -1.0
+    for k in range(1, len(quats)):
+        quats[k] *= 1.0 if quats[k] @ quats[k - 1] >= 0 else -1.0
+    return np.column_stack([poses[:, :3, 3], quats])
+
+
+def film(plan: RobotPlan, recon, *, fps: int, cameras: list[Camera], size: tuple[int, int],
+         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
+    """Run ``plan`` in MuJoCo from its start to its end at ``fps``, rendering ``cameras`` at ``size`` (H, W) px.
 
     Returns:
-        ``state`` (T, 8), ``action`` (T, 8) (the plan's command at the same times) and
-        camera name -> (T, H, W, 3) uint8 frames.
+        ``state`` (T, 8), ``action`` (T, 8) (the plan's command at the same times), ``ee_pose``
+        (T, 7) (the tool centre point in the base frame) and camera name -> (T, H, W, 3) uint8 frames.
     """
     times = np.arange(0.0, plan.t[-1] + 1e-9, 1.0 / fps)
     filming = _Filming(cameras, plan.base, size)
     try:
-        replay_mujoco.simulate(plan, recon, times, video=filming)
+        sim = replay_mujoco.simulate(plan, recon, times, video=filming)
     finally:
         if filming.renderer is not None:
             filming.renderer.close()
     action = np.column_stack([*(np.interp(times, plan.t, plan.q[:, i]) for i in range(7)),
                               np.interp(times, plan.t, plan.gripper)])
+    ee_pose = pose_vectors(np.linalg.inv(plan.base) @ np.asarray(sim["tcp"]))
     frames = {name: np.stack(images) for name, images in filming.frames.items()}
-    return np.asarray(filming.state), action, frames
+    return np.asarray(filming.state), action, ee_pose, frames
 
 
 @dataclasses.dataclass
 class Attempt:
-    """One layout tried: its plan and replay, or why it failed (``reason`` empty on success)."""
+    """One layout tried, judged by its MuJoCo replay (not yet filmed).
+
+    Attributes:
+        layout: where it ran.
+        reason: why it failed ("" on success): the planner's refusal, the replay's error or its failed checks.
+        plan, recon: the plan and the skill's scene in the layout; None where it was not replayed.
+    """
 
     layout: Layout
     reason: str
-    episode: Episode | None = None
+    plan: RobotPlan | None = None
+    recon: Reconstruction | None = None
+
+    @property
+    def success(self) -> bool:
+        """Whether the replay achieved the action."""
+        return self.plan is not None and not self.reason
 
 
-def rollouts(skill: Skill, *, fps: int, cameras: list[Camera], size: tuple[int, int], seed: int = 0,
-             ) -> Iterator[Attempt]:
-    """Endless attempts of ``skill`` in the random layouts of ``seed``; successful ones carry their :class:`Episode`."""
-    task = TASKS[skill.action]
+def rollouts(skill: Skill, *, seed: int = 0) -> Iterator[Attempt]:
+    """Endless judged attempts of ``skill`` in the random layouts of ``seed`` (:func:`~warpskill.export.layouts.layouts`).
+
+    Raises:
+        LayoutError: no layout of the skill fits the reachable table (from the sampler).
+    """
     for layout in layouts(skill, seed=seed):
+        yield attempt(skill, layout)
+
+
+def attempt(skill: Skill, layout: Layout) -> Attempt:
+    """Plan and replay ``skill`` in ``layout``: a refused layout or a failed replay is an attempt with its reason."""
+    try:
         recon = skill.apply(layout)
-        try:
-            plan = retarget(skill, layout=layout)
-        except (PlanError, LayoutError) as error:
-            yield Attempt(layout, f"plan: {error}")
-            continue
-        result = replay(plan, recon)
-        if not result.success:
-            failed = [name for name, ok in result.evaluation.checks.items() if not ok]
-            yield Attempt(layout, f"replay fails {', '.join(failed)}")
-            continue
-        state, action, frames = film(plan, recon, fps=fps, cameras=cameras, size=size)
-        yield Attempt(layout, "", Episode(layout, state, action, frames, task))
+        plan = retarget(skill, layout=layout)
+    except ValueError as error:  # LayoutError, PlanError, SkillError: the layout is refused
+        return Attempt(layout, f"plan: {error}")
+    try:
+        result = replay(plan, recon, ENGINE)
+    except ValueError as error:  # the plan's scene refused (its substitute object in the layout)
+        return Attempt(layout, f"replay: {error}")
+    failed = [name for name, ok in result.evaluation.checks.items() if not ok]
+    return Attempt(layout, f"replay fails {', '.join(failed)}" if failed else "", plan, recon)
+
+
+def film_attempt(tried: Attempt, task: str, *, fps: int, cameras: list[Camera], size: tuple[int, int]) -> Episode:
+    """The :class:`Episode` of a planned attempt, filmed by ``cameras`` at ``size`` (H, W) px."""
+    state, action, ee_pose, frames = film(tried.plan, tried.recon, fps=fps, cameras=cameras, size=size)
+    return Episode(tried.layout, state, action, ee_pose, frames, task, success=tried.success, reason=tried.reason)
