@@ -8,6 +8,7 @@ from robot_support import require_robot
 
 robot = require_robot("placo", "mujoco")
 from warpskill import assets  # noqa: E402
+from warpskill.bench.outcomes import load_outcomes  # noqa: E402
 from warpskill.cli import main  # noqa: E402
 from warpskill.contract.reconstruction import Reconstruction  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
@@ -48,6 +49,8 @@ def test_bench_something_else_robot_columns(tmp_path, capsys):
         assert (tmp_path / VIDEO / name).is_file(), name
     assert robot.Replay.load(tmp_path / VIDEO / "replay_mujoco.npz").success
     assert (tmp_path / VIDEO / "replay.mp4").is_file() or (tmp_path / VIDEO / "replay.png").is_file()
+    [case] = load_outcomes(tmp_path).values()  # the robot's verdict is in the outcome table
+    assert case.robot_success and case.robot["replays"] == {"mujoco": True} and case.robot["misses"] == []
 
 
 def test_bench_something_else_robot_reports_a_missing_plan_in_one_line(tmp_path, capsys, monkeypatch):
@@ -70,6 +73,8 @@ def test_bench_something_else_robot_reports_a_missing_plan_in_one_line(tmp_path,
     assert result["rows"]["full method (box masks)"] == [("put_next_to", True)]
     assert result["rows"]["planned"] == result["rows"]["end to end"] == [("put_next_to", False)]
     assert result["agreement"]["cases"] == 0
+    [case] = result["outcomes"]
+    assert case.success and case.robot_success is False and case.robot["misses"] == [f"plan: {outcome.reason}"]
 
     # A video without a reconstruction fails every robot row.
     rows = robot_rows([("pick_up", True, RobotOutcome(reason="x")), ("pick_up", False, None)], ("mujoco", "newton"))

@@ -97,13 +97,14 @@ def test_perturbation_changes_the_simulated_mass_friction_and_start():
 
 
 @pytest.mark.slow
-def test_generalize_two_layouts(capsys):
+def test_generalize_two_layouts(capsys, tmp_path):
     from robot_support import require_robot
 
     require_robot("placo", "mujoco")
     from warpskill.bench.generalize import bench_generalize
+    from warpskill.bench.outcomes import load_outcomes
 
-    result = bench_generalize({"pick_up": truth("pick_up")}, layouts=2, seed=1)
+    result = bench_generalize({"pick_up": truth("pick_up")}, layouts=2, seed=1, out=tmp_path)
     rows = result["rows"]
     assert set(rows) == {"planned", "replay mujoco", "robust"}
     assert all(len(results) == 2 and {a for a, _ in results} == {"pick_up"} for results in rows.values())
@@ -113,6 +114,12 @@ def test_generalize_two_layouts(capsys):
     assert (misses == 0) == (not result["misses"])
     out = capsys.readouterr().out
     assert "| planned" in out and "| robust" in out
+    table = load_outcomes(tmp_path)  # one row per layout, its robot verdicts as in the table above
+    assert list(table) == ["pick_up/layout 0", "pick_up/layout 1"]
+    for k, case in enumerate(table.values()):
+        assert case.success == rows["replay mujoco"][k][1]
+        assert case.robot_success == rows["robust"][k][1]
+        assert case.robot["misses"] == result["outcomes"][k].misses()
 
 
 def test_a_skill_no_layout_fits_counts_as_unplanned_and_says_why(capsys):
@@ -129,6 +136,8 @@ def test_a_skill_no_layout_fits_counts_as_unplanned_and_says_why(capsys):
     [miss] = result["misses"]
     assert miss.startswith("into-the-box: every layout: ")
     assert "into-the-box: no layout: " in capsys.readouterr().out
+    assert [(c.case, c.failed_checks, c.robot_success) for c in result["cases"]] == \
+        [("into-the-box/layout 0", ("plan",), False), ("into-the-box/layout 1", ("plan",), False)]
 
 
 def test_generalize_refuses_the_robust_row_without_mujoco():

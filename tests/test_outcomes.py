@@ -31,7 +31,7 @@ def test_the_table_round_trips_through_json_and_csv(tmp_path):
     path = write_outcomes(tmp_path, outcomes)
     assert load_outcomes(path) == {o.case: o for o in outcomes} == load_outcomes(tmp_path)
     rows = (tmp_path / "outcomes.csv").read_text().splitlines()
-    assert rows[1].startswith("pick_up_1,pick_up,0,lifted,0.2000,") and rows[2].endswith("DemonstrationError: no box")
+    assert rows[1].startswith("pick_up_1,pick_up,0,lifted,0.2000,") and rows[2].endswith("DemonstrationError: no box,,")
 
 
 def test_flips_name_fixed_and_broken_cases_with_their_failed_checks():
@@ -44,6 +44,30 @@ def test_flips_name_fixed_and_broken_cases_with_their_failed_checks():
     assert "fixed  a_2" in report and "was failing (lifted)" in report
     assert "broken a_1" in report and "now failing (lifted)" in report
     assert "not in yesterday: a_5" in report and "only in yesterday: a_4" in report
+
+
+def _robot(planned=True, mujoco=True, newton=True, robust=None, misses=()):
+    return {"planned": planned, "replays": {"mujoco": mujoco, "newton": newton}, "robust": robust,
+            "misses": list(misses), "substitute": ""}
+
+
+def test_the_robot_step_is_kept_in_the_table_and_its_flips_are_named(tmp_path):
+    before = [CaseOutcome("19", "put_next_to", True, robot=_robot()),
+              CaseOutcome("3107", "pull_right_to_left", True, robot=_robot(newton=False,
+                                                                                misses=["newton replay fails moved_left"])),
+              CaseOutcome("601", "push_left_to_right", True)]  # no robot step
+    now = [CaseOutcome("19", "put_next_to", True, robot=_robot(robust=False, misses=["not robust: fails under mass x2"])),
+           CaseOutcome("3107", "pull_right_to_left", True, robot=_robot()),
+           CaseOutcome("601", "push_left_to_right", True, robot=_robot())]
+    path = write_outcomes(tmp_path, now)
+    assert load_outcomes(path) == {o.case: o for o in now}
+    assert [o.robot_success for o in before] == [True, False, None]
+    rows = (tmp_path / "outcomes.csv").read_text().splitlines()
+    assert rows[0].endswith(",robot,robot_misses") and rows[1].endswith(",0,not robust: fails under mass x2")
+    report = flip_report({o.case: o for o in before}, {o.case: o for o in now})
+    assert "robot step: 2 case(s) in both, 1 -> 1 succeed; 1 fixed, 1 broken" in report
+    assert "fixed  3107" in report and "was missing: newton replay fails moved_left" in report
+    assert "broken 19" in report and "now missing: not robust: fails under mass x2" in report
 
 
 def test_an_output_folder_of_older_code_is_re_evaluated_as_a_baseline(tmp_path, capsys):

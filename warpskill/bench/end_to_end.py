@@ -90,6 +90,14 @@ class RobotOutcome:
         broken = self.broken_by()
         return lines + ([f"not robust: fails under {', '.join(broken)}"] if broken else [])
 
+    def record(self) -> dict:
+        """The outcome as a JSON-ready record for the outcome table (``CaseOutcome.robot``): ``planned``,
+        ``replays`` (engine -> success), ``robust`` (None where not tried), ``misses`` (:meth:`misses`)
+        and ``substitute`` (the plan's note on the object the robot handles instead, or empty)."""
+        return {"planned": self.planned, "replays": {engine: self.success(engine) for engine in self.replays},
+                "robust": self.robust if self.perturbed else None, "misses": self.misses(),
+                "substitute": self.plan.note if self.planned else ""}
+
     def agree(self) -> bool:
         """Whether every engine run gives the same verdict."""
         return len({result.success for result in self.replays.values()}) <= 1

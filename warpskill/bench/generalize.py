@@ -12,17 +12,24 @@ friction -+30 %, the object 1 cm and 5 deg off); it is *robust* when it succeeds
 
 Prints, per action, planned / succeeded (per engine) / robust as a success table, how the
 engines agree, and the reason of every miss (the plan's error, the failed checks, the
-perturbations that broke it).
+perturbations that broke it). With ``out``, one outcome row per layout (case ``<name>/layout
+<k>``, :class:`~warpskill.bench.outcomes.CaseOutcome`: success = replayed in every engine,
+its ``robot`` record with the misses and the substitute) goes to ``OUT/outcomes.json``, and the
+flips since a baseline table are printed.
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping, Sequence
 from itertools import islice
+from pathlib import Path
 
 from warpskill.bench.end_to_end import RobotOutcome, agreement_line, check_robust_engines, robot_step
+from warpskill.bench.outcomes import CaseOutcome, record_outcomes
 from warpskill.contract.evaluation import success_table
 from warpskill.contract.reconstruction import Reconstruction
+from warpskill.contract.results_folder import ResultsFolder
 from warpskill.contract.skill import LayoutError, skill_from
 from warpskill.export.layouts import layouts as random_layouts
 
@@ -43,7 +50,9 @@ def _count(rows: dict, action: str, verdicts: dict[str, bool]) -> None:
 
 def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
                      engines: Sequence[str] = ("mujoco",), seed: int = 0, device: str = "cpu",
-                     robust: bool = True) -> dict:
+                     robust: bool = True, out: str | os.PathLike | None = None,
+                     baseline: str | os.PathLike | None = None,
+                     save_baseline: str | os.PathLike | None = None) -> dict:
     """Plan and replay every skill in ``layouts`` random layouts; print the table and the misses.
 
     Args:
@@ -54,10 +63,14 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
         device: Warp device of Newton.
         robust: the ``robust`` row: a layout whose plan succeeds in every engine is replayed
             in MuJoCo once more under each perturbation (needs ``mujoco`` among the engines).
+        out: folder of the outcome table (None: none written).
+        baseline, save_baseline: an earlier run's outcome table (or its folder) to print the
+            flips against; where to save a copy of this run's (:func:`~warpskill.bench.outcomes.record_outcomes`).
 
     Returns:
-        ``{"rows": {row: [(action, ok)]}, "misses": [str], "outcomes": [RobotOutcome]}``, rows
-        ``planned``, ``replay <engine>``, and ``robust`` when computed.
+        ``{"rows": {row: [(action, ok)]}, "misses": [str], "outcomes": [RobotOutcome],
+        "cases": [CaseOutcome]}``, rows ``planned``, ``replay <engine>``, and ``robust`` when
+        computed.
 
     Raises:
         ValueError: ``robust`` without the ``mujoco`` engine.
@@ -66,7 +79,7 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
     if robust:
         check_robust_engines(engines)
     rows: dict[str, list[tuple[str, bool]]] = {}
-    misses, outcomes = [], []
+    misses, outcomes, cases = [], [], []
     for i, (name, recon) in enumerate(recons.items()):
         skill, done = skill_from(recon), 0
         try:
@@ -74,6 +87,7 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
                 outcome = robot_step(skill.apply(layout), engines=engines, device=device, robust=robust,
                                      skill=skill, layout=layout)
                 outcomes.append(outcome)
+                cases.append(_case(f"{_short(name)}/layout {k}", skill.action, outcome))
                 verdicts = _verdicts(outcome, engines, robust)
                 done += 1
                 _count(rows, skill.action, verdicts)
@@ -81,9 +95,10 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
                 print(f"{name} layout {k}: " + ", ".join(f"{row} {'yes' if ok else 'no'}"
                                                          for row, ok in verdicts.items()), flush=True)
         except LayoutError as error:  # no layout fits this skill (e.g. its path runs into the static box)
-            unplanned = _verdicts(RobotOutcome(reason=str(error)), engines, robust)
-            for _ in range(layouts - done):
-                _count(rows, skill.action, unplanned)
+            unplanned = RobotOutcome(reason=str(error))
+            for k in range(done, layouts):
+                _count(rows, skill.action, _verdicts(unplanned, engines, robust))
+                cases.append(_case(f"{_short(name)}/layout {k}", skill.action, unplanned))
             misses.append(f"{name}: every layout: {error}")
             print(f"{name}: no layout: {error}", flush=True)
     print()
@@ -95,4 +110,18 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
         print("misses:")
         for line in misses:
             print(f"  {line}")
-    return {"rows": rows, "misses": misses, "outcomes": outcomes}
+    record_outcomes(out, cases, baseline=baseline, save_baseline=save_baseline)
+    return {"rows": rows, "misses": misses, "outcomes": outcomes, "cases": cases}
+
+
+def _short(name: str) -> str:
+    """A reconstruction's name in the outcome table: its folder's name for ``.../<case>/reconstruction.npz``."""
+    path = Path(name)
+    return path.parent.name if path.name == ResultsFolder.RECONSTRUCTION and path.parent.name else path.stem
+
+
+def _case(case: str, action: str, outcome: RobotOutcome) -> CaseOutcome:
+    """One layout's row of the outcome table: success = replayed in every engine; the robot's record."""
+    failed = tuple(dict.fromkeys(check for engine in outcome.replays for check in outcome.failed_checks(engine)))
+    return CaseOutcome(case, action, outcome.replayed, failed if outcome.planned else ("plan",),
+                       note="" if outcome.planned else str(outcome.reason), robot=outcome.record())

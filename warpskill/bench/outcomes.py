@@ -44,6 +44,8 @@ class CaseOutcome:
         failed_checks: the criteria it failed (``error`` when there was no reconstruction).
         errors: key errors against the ground truth ([m], [rad], scale), empty without one.
         note: why there is no reconstruction, or empty.
+        robot: the robot step where it ran (:meth:`~warpskill.bench.end_to_end.RobotOutcome.record`:
+            ``planned``, ``replays``, ``robust``, ``misses``, ``substitute``), else empty.
     """
 
     case: str
@@ -52,6 +54,17 @@ class CaseOutcome:
     failed_checks: tuple[str, ...] = ()
     errors: dict[str, float] = dataclasses.field(default_factory=dict)
     note: str = ""
+    robot: dict = dataclasses.field(default_factory=dict)
+
+    @property
+    def robot_success(self) -> bool | None:
+        """Whether the robot achieved the action: planned, every replay and (where tried) every
+        perturbed one succeeded; None where the robot step did not run."""
+        if not self.robot:
+            return None
+        replays = self.robot.get("replays", {})
+        return bool(self.robot.get("planned") and replays and all(replays.values())
+                    and self.robot.get("robust") is not False)
 
 
 def judged(case: str, evaluation: Evaluation, errors: dict[str, float] | None = None) -> CaseOutcome:
@@ -74,10 +87,12 @@ def write_outcomes(folder: str | os.PathLike, outcomes: list[CaseOutcome]) -> Pa
     save_outcomes(path, outcomes)
     with open(folder / OUTCOMES_CSV, "w", newline="") as handle:
         writer = csv.writer(handle, lineterminator="\n")
-        writer.writerow(["case", "action", "success", "failed_checks", *ERROR_KEYS, "note"])
+        writer.writerow(["case", "action", "success", "failed_checks", *ERROR_KEYS, "note", "robot", "robot_misses"])
         for o in outcomes:
             cells = [f"{o.errors[key]:.4f}" if key in o.errors else "" for key in ERROR_KEYS]
-            writer.writerow([o.case, o.action, int(o.success), " ".join(o.failed_checks), *cells, o.note])
+            robot = "" if o.robot_success is None else int(o.robot_success)
+            writer.writerow([o.case, o.action, int(o.success), " ".join(o.failed_checks), *cells, o.note, robot,
+                             "; ".join(o.robot.get("misses", []))])
     return path
 
 
@@ -197,8 +212,21 @@ def flips(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome]) -> 
     return fixed, broken
 
 
+def robot_flips(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome]) -> tuple[list, list]:
+    """As :func:`flips`, for :attr:`CaseOutcome.robot_success` (cases with the robot step in both tables)."""
+    fixed, broken = [], []
+    for case, now in current.items():
+        before = baseline.get(case)
+        if before is None or None in (before.robot_success, now.robot_success) or \
+                before.robot_success == now.robot_success:
+            continue
+        (fixed if now.robot_success else broken).append((before, now))
+    return fixed, broken
+
+
 def flip_report(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome], name: str = "baseline") -> str:
-    """Lines naming every case that flipped since ``baseline``, both ways, with the failed checks."""
+    """Lines naming every case that flipped since ``baseline``, both ways, with the failed checks;
+    then the robot step's flips where both tables have it, with its misses."""
     fixed, broken = flips(baseline, current)
     shared = set(baseline) & set(current)
     before = sum(baseline[c].success for c in shared)
@@ -209,12 +237,29 @@ def flip_report(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome
         lines.append(f"  fixed  {now.case:<24} {now.action:<20} was failing {_checks(before_o)}")
     for before_o, now in broken:
         lines.append(f"  broken {now.case:<24} {now.action:<20} now failing {_checks(now)}")
+    lines += _robot_flip_lines(baseline, current)
     only_now, only_before = sorted(set(current) - shared), sorted(set(baseline) - shared)
     if only_now:
         lines.append(f"  not in {name}: {_listed(only_now)}")
     if only_before:
         lines.append(f"  only in {name}: {_listed(only_before)}")
     return "\n".join(lines)
+
+
+def _robot_flip_lines(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome]) -> list[str]:
+    """The robot step's part of :func:`flip_report` (nothing where no case has it in both tables)."""
+    both = [c for c in set(baseline) & set(current)
+            if baseline[c].robot_success is not None and current[c].robot_success is not None]
+    if not both:
+        return []
+    fixed, broken = robot_flips(baseline, current)
+    lines = [f"robot step: {len(both)} case(s) in both, {sum(baseline[c].robot_success for c in both)} -> "
+             f"{sum(current[c].robot_success for c in both)} succeed; {len(fixed)} fixed, {len(broken)} broken"]
+    for before_o, now in fixed:
+        lines.append(f"  fixed  {now.case:<24} {now.action:<20} was missing: {'; '.join(before_o.robot['misses'])}")
+    for _, now in broken:
+        lines.append(f"  broken {now.case:<24} {now.action:<20} now missing: {'; '.join(now.robot['misses'])}")
+    return lines
 
 
 def _listed(cases: list[str], most: int = 10) -> str:

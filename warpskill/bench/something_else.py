@@ -37,7 +37,7 @@ from warpskill.bench.end_to_end import (
     robot_step,
     timing_lines,
 )
-from warpskill.bench.outcomes import folder_outcomes, record_outcomes
+from warpskill.bench.outcomes import CaseOutcome, folder_outcomes, record_outcomes
 from warpskill.cluster import INSTALL_HINT, optimize_folder, ray_available
 from warpskill.contract.evaluation import evaluate, success_table
 from warpskill.contract.nouns import size_ratio
@@ -45,6 +45,8 @@ from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
 from warpskill.data.box_annotations import (
     object_noun as video_noun,
+)
+from warpskill.data.box_annotations import (
     read_something_else,
     something_else_demonstration,
 )
@@ -166,10 +168,21 @@ def _with_outcomes(result: dict, out: Path, table, vids, baseline, save_baseline
     compared with ``baseline``."""
     cases = {vid: table[vid].action for vid in vids if table[vid].action}
     ratios = noun_size_ratios(out, {vid: object_noun or video_noun(table[vid]) for vid in vids})
-    outcomes = [dataclasses.replace(o, errors={**o.errors, "noun_ratio": ratios[o.case]})
-                if ratios.get(o.case) is not None else o for o in folder_outcomes(out, cases, result["failures"])]
+    outcomes = [_with_size_and_robot(o, ratios.get(o.case), result.get("robot"))
+                for o in folder_outcomes(out, cases, result["failures"])]
     record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
     return {**result, "outcomes": outcomes, "size_ratios": ratios}
+
+
+def _with_size_and_robot(outcome: CaseOutcome, noun_ratio: float | None, robots: dict | None) -> CaseOutcome:
+    """A video's outcome with its size against its noun's and (where the robot step ran) the robot's record."""
+    errors = outcome.errors if noun_ratio is None else {**outcome.errors, "noun_ratio": noun_ratio}
+    if robots is None or outcome.case not in robots:
+        return dataclasses.replace(outcome, errors=errors)
+    robot = robots[outcome.case]
+    record = robot.record() if robot is not None else {"planned": False, "replays": {}, "robust": None,
+                                                        "misses": ["no reconstruction"], "substitute": ""}
+    return dataclasses.replace(outcome, errors=errors, robot=record)
 
 
 def noun_size_ratios(out: Path, nouns: dict[str, str | None]) -> dict[str, float | None]:

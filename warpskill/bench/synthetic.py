@@ -22,7 +22,6 @@ from warpskill.optimizer.options import OptimizeOptions
 from warpskill.optimizer.pipeline import optimize_many
 from warpskill.synthetic import check_scenarios, make_demonstration, real_scenarios
 
-
 NOUN_SPREAD = 0.3
 """Log-normal spread of real objects' sizes around their noun's typical one (a mug, a
 bottle, a box of one name differ by about this much in log)."""

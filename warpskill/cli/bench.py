@@ -66,6 +66,8 @@ def register(commands) -> None:
     generalize.add_argument("--device", default="cpu", help="Warp device of Newton")
     generalize.add_argument("--no-robust", dest="robust", action="store_false",
                             help="skip the perturbed replays (the robust row)")
+    generalize.add_argument("-o", "--out", type=Path, help="write the per-layout outcome table into this folder")
+    _add_baseline_options(generalize)
     generalize.set_defaults(run=_bench_generalize)
     real = bench.add_parser("something-else", help="the paper's success table on annotated real videos")
     real.add_argument("--annotations", type=Path, required=True, help="Something-Else boxes (JSON)")
@@ -177,7 +179,7 @@ def _bench_generalize(args) -> int:
 
     recons = {str(path): Reconstruction.load(path) for path in args.reconstructions}
     bench_generalize(recons, layouts=args.layouts, engines=args.engines, seed=args.seed, device=args.device,
-                     robust=args.robust)
+                     robust=args.robust, out=args.out, baseline=args.baseline, save_baseline=args.save_baseline)
     return 0
 
 
