@@ -309,13 +309,17 @@ class LeRobotWriter:
     def __enter__(self) -> "LeRobotWriter":
         return self
 
+    def abort(self) -> None:
+        """Release the files without writing the metadata; the folder is left as it is."""
+        self.data.close()
+        for video in self.videos.values():
+            video.container.close()
+
     def __exit__(self, kind, error, trace) -> None:
         if kind is None:
             self.close()
-        else:  # an episode failed: release the files, leave the folder as it is
-            self.data.close()
-            for video in self.videos.values():
-                video.container.close()
+        else:  # an episode failed
+            self.abort()
 
 
 def _tasks_table(tasks: dict[str, int]) -> pa.Table:
