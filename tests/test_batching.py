@@ -181,3 +181,36 @@ def test_minimise_stops_a_rival_far_behind_at_a_rung_and_lets_near_ties_go_on():
     assert all(1 in live for live in seen[:5])
     assert all(1 not in live and {0, 2, 3, 4} <= set(live) for live in seen[5:])
     assert len(seen) == 30
+
+
+def test_minimise_stops_a_module_whose_best_loss_has_converged():
+    # Bowl 0 starts at its minimum (its best loss never falls); bowl 1 far from it keeps improving.
+    bowls = [_Bowl([0.0, 0.0, 0.0]), _Bowl([3.0, 3.0, 3.0])]
+    seen = []
+
+    def objective(live):
+        seen.append(list(live))
+        return [bowls[b].loss() for b in live]
+
+    config = OptimizeConfig(converge_window=8, converge_tolerance=1e-3)
+    minimise(bowls, objective, iterations=20, learning_rate=0.05, config=config, progress=False, label="bowls",
+             store=Checkpoint(None, ""))
+    assert all(0 in live for live in seen[:8]) and all(live == [1] for live in seen[9:])
+    assert len(seen) == 20
+
+
+def test_minimise_runs_the_coarse_objective_first_then_restarts_from_the_best():
+    bowl = _Bowl([1.0, 0.0, 0.0])
+    calls = []
+
+    def objective(kind, shift):
+        def terms(live):
+            calls.append(kind)
+            return [{"bowl": bowl.loss()["bowl"] + shift}]
+        return terms
+
+    config = OptimizeConfig(converge_window=0)
+    [best] = minimise([bowl], objective("fine", 0.0), iterations=12, learning_rate=0.05, config=config,
+                      progress=False, label="bowl", store=Checkpoint(None, ""), coarse=(5, objective("coarse", -10.0)))
+    assert calls[:5] == ["coarse"] * 5 and calls[5:] == ["fine"] * 7
+    assert best > 0.0  # the best loss is the fine objective's, not the coarse one's lower values

@@ -24,6 +24,7 @@ def minimise(
     store: "Checkpoint",
     rivals: Sequence[object | None] | None = None,
     rungs: Sequence[tuple[int, float]] = (),
+    coarse: tuple[int, Callable[[list[int]], list[dict[str, torch.Tensor]]]] | None = None,
 ) -> list[float]:
     """Adam (amsgrad) with reduce-on-plateau, per module; leaves each module at its best parameters.
 
@@ -36,20 +37,32 @@ def minimise(
     (relative) above the best of its group stops where it is (successive halving: a
     hypothesis far behind early seldom wins late; near ties go on to a later rung).
 
+    ``coarse`` = (K, coarse objective): the first K iterations minimise the coarse objective (the
+    same terms at a lower resolution); then each module restarts from its best parameters with
+    its best loss and schedule forgotten (the two losses differ in scale).
+
+    A module also stops once it has converged: its best loss fell by less than
+    ``config.converge_tolerance`` (relative) over the last ``config.converge_window`` iterations.
+
     Returns:
         The best loss each module reached.
     """
     run = _AdamRun(modules, learning_rate, config, store, label)
     bar = tqdm(total=iterations, initial=run.start, desc=label, disable=not progress, leave=False)
     iteration = run.start
+    switch, coarse_objective = coarse or (0, objective)
     while iteration < iterations and (active := run.live()):
+        if iteration == switch > 0:
+            run.restart()
         run.optimizer.zero_grad(set_to_none=True)  # modules that have stopped get no gradient: Adam skips them
-        losses = torch.stack([sum(terms.values()) for terms in objective(active)])
+        terms = (coarse_objective if iteration < switch else objective)(active)
+        losses = torch.stack([sum(t.values()) for t in terms])
         values = losses.detach().cpu().tolist()  # the iteration's one device-to-host copy
         run.check_finite(active, values, iteration)
         losses.sum().backward()
         run.step(active, values, iteration)
         iteration += 1
+        run.stop(run.converged(active))
         for rung, margin in rungs if rivals is not None else ():
             if iteration == rung:
                 run.stop(_behind_rivals(rivals, run.best_loss, margin))
@@ -72,6 +85,7 @@ class _AdamRun:
                                           amsgrad=True)
         self.plateaus = [Plateau(config.plateau_patience, config.plateau_factor) for _ in modules]
         self.best_loss, self.best_state, self.start = [float("inf")] * len(modules), [copy_state(m) for m in modules], 0
+        self.trail: list[list[float]] = [[] for _ in modules]  # each module's best loss after each of its iterations
         saved = store.load(label)
         if saved is not None:
             for module, state in zip(modules, saved["modules"]):
@@ -80,6 +94,7 @@ class _AdamRun:
             for plateau, state in zip(self.plateaus, saved["plateaus"]):
                 plateau.best, plateau.bad = state
             self.best_loss, self.best_state, self.start = saved["best_loss"], saved["best_state"], saved["iteration"]
+            self.trail = saved.get("trail", self.trail)
         self.groups = self.optimizer.param_groups  # after loading: load_state_dict replaces the group dicts
         # The progress bar sums over every module: its latest loss (a stopped module's last)
         # beside its best, so the two totals are of the same quantity and best <= loss.
@@ -104,6 +119,7 @@ class _AdamRun:
             self.latest[b] = value
             if value < self.best_loss[b]:
                 self.best_loss[b], self.best_state[b] = value, copy_state(self.modules[b])
+            self.trail[b] = (self.trail[b] + [self.best_loss[b]])[-(self.config.converge_window + 1):]
             # Warm-up: Adam's first steps move every parameter by about lr, whatever its gradient,
             # which can push the hand out of a grasp that only just holds.
             self.groups[b]["lr"] = lr_before[b] * min(1.0, (iteration + 1) / self.config.warmup_iterations)
@@ -115,6 +131,21 @@ class _AdamRun:
                 self.modules[b].load_state_dict(self.best_state[b])
                 for parameter in self.modules[b].parameters():
                     self.optimizer.state.pop(parameter, None)
+
+    def converged(self, active: list[int]) -> list[int]:
+        """The ``active`` modules whose best loss fell by less than ``converge_tolerance`` (relative)
+        over their last ``converge_window`` iterations (none while the window is 0)."""
+        window, tolerance = self.config.converge_window, self.config.converge_tolerance
+        return [b for b in active if window > 0 and len(self.trail[b]) > window
+                and self.trail[b][0] - self.trail[b][-1] <= tolerance * abs(self.trail[b][0])]
+
+    def restart(self) -> None:
+        """Every module back at its best parameters, its best loss, plateau and trail forgotten."""
+        for b, module in enumerate(self.modules):
+            module.load_state_dict(self.best_state[b])
+        self.best_loss = [float("inf")] * len(self.modules)
+        self.plateaus = [Plateau(self.config.plateau_patience, self.config.plateau_factor) for _ in self.modules]
+        self.trail = [[] for _ in self.modules]
 
     def stop(self, modules: list[int]) -> None:
         """Stop these modules where they are."""
@@ -132,7 +163,7 @@ class _AdamRun:
         self.store.save(self.label, dict(
             modules=[m.state_dict() for m in self.modules], optimizer=self.optimizer.state_dict(),
             plateaus=[(p.best, p.bad) for p in self.plateaus], best_loss=self.best_loss, best_state=self.best_state,
-            iteration=iteration,
+            iteration=iteration, trail=self.trail,
         ))
 
     def finish(self, objective, iterations: int) -> list[float]:

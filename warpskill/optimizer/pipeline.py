@@ -43,7 +43,7 @@ from warpskill.optimizer.hypotheses import (
 )
 from warpskill.optimizer.known import check_known
 from warpskill.optimizer.loop import minimise
-from warpskill.optimizer.losses import masks_loss
+from warpskill.optimizer.losses import MaskTargets, masks_loss
 from warpskill.optimizer.options import OptimizeOptions
 from warpskill.optimizer.scene import SceneTrajectories, perceptual_loss
 from warpskill.optimizer.stage_a import initial_objective
@@ -129,11 +129,14 @@ def optimize_many(
 
     # Stage (a): each object-depth hypothesis; the depth hypotheses of a demonstration are
     # rivals, those clearly behind stop early (``config.rival_rungs``), the lowest loss wins.
+    # Its first ``config.coarse_iterations`` at ``config.coarse_scale`` of the working resolution.
     candidates = stage_a_candidates(evidence, config.weights.typical_camera_height, device)
+    coarse = [_coarse_evidence(e, config, device) for e in evidence] if config.coarse_iterations > 0 else evidence
     losses = minimise([c.parameters for c in candidates], _stage_a_objective(candidates, evidence, config, backend),
                       iterations=config.init_iterations, learning_rate=config.init_learning_rate, config=config,
                       progress=progress, label="initialisation", store=store, rivals=rival_groups(candidates),
-                      rungs=config.rival_rungs)
+                      rungs=config.rival_rungs,
+                      coarse=(config.coarse_iterations, _stage_a_objective(candidates, coarse, config, backend)))
     winners = stage_a_winners(candidates, losses, len(demos))
     if options.init_only:
         return [_stage_a_reconstruction(evidence[i], candidates[j], losses[j], config, options)
@@ -193,6 +196,17 @@ def _run_id(demos: Sequence[Demonstration], options: OptimizeOptions, backend: B
 def _with_known(options: OptimizeOptions, known: dict[str, float]) -> OptimizeOptions:
     """``options`` as saved with one demonstration's reconstruction: with its own known lengths."""
     return replace(options, known=tuple(known.items()))
+
+
+def _coarse_evidence(seen: Evidence, config: OptimizeConfig, device: torch.device) -> Evidence:
+    """``seen`` with its masks (and their intrinsics) at ``config.coarse_scale`` of the working
+    resolution; the contact and what was read of the masks stay the working resolution's."""
+    given = seen.inputs
+    h, w = seen.demo.intrinsics.scaled(config.image_scale * config.coarse_scale).image_size
+    masks = torch.as_tensor(seen.demo.mask_stack(h, w), device=device)
+    targets = MaskTargets(masks, given.targets.boxed, given.targets.absent)
+    return replace(seen, inputs=replace(given, intrinsics=seen.demo.intrinsics.resized(h, w), masks=masks,
+                                        targets=targets))
 
 
 def _stage_a_objective(candidates: Sequence[Candidate], evidence: Sequence[Evidence], config: OptimizeConfig,
