@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 import torch
 import warp as wp
-from warpskill.engine.rendering import raster
 
 from warpskill.contract.camera import Intrinsics
 from warpskill.engine.primitives import (
@@ -21,7 +20,7 @@ from warpskill.engine.primitives import (
     prism_planes,
 )
 from warpskill.engine.raycast import raycast_masks
-from warpskill.engine.rendering import _Buffers, _Layers, _SoftSilhouettes, render_silhouettes, silhouette_profiles
+from warpskill.engine.rendering import _SoftSilhouettes, _Workspace, raster, render_silhouettes, silhouette_profiles
 
 HEIGHT, ELEVATION = 0.30, 0.50  # camera [m], [rad]
 FULL = Intrinsics.default(240, 427)
@@ -384,28 +383,20 @@ def test_edge_moments_match_dense_reference(dense_case):
     c = dense_case
     pixels, (H, W) = c["pixels"], c["image_size"]
     F, P = pixels.shape[:2]
-    buffers = _Buffers(
-        vertices=pixels.to(torch.float32).contiguous(),
-        hull=torch.zeros(F, P, raster.MAX_HULL, dtype=torch.int32),
-        count=torch.zeros(F, P, dtype=torch.int32),
-        line=torch.zeros(F, P, raster.MAX_HULL, 3, dtype=torch.float32),
-        bound=torch.zeros(F, P, 4, dtype=torch.float32),
-        plane_count=(c["planes"][..., 3] < 0).sum(-1, dtype=torch.int32),
-        plane=c["planes"].to(torch.float32).contiguous(),
-    )
-    moment = torch.zeros(F, P, raster.MAX_HULL, 3, dtype=torch.float32)
     wp.init()
-    views = buffers.views()
-    visible = wp.from_torch(c["visible"].to(torch.int32))
-    raster.build_hulls(wp.from_torch(c["sides"]), raster.CUTOFF * c["sigma"], visible, *views[:5])
-    layers = _Layers(torch.zeros(F, H, W, dtype=torch.int32), torch.empty(F, P, H, W), torch.empty(F, P, H, W))
+    work = _Workspace.take(pixels.shape, c["planes"].shape, (H, W), torch.device("cpu"))
+    work.load(pixels, c["planes"], c["visible"])
+    raster.build_hulls(wp.from_torch(c["sides"]), raster.CUTOFF * c["sigma"], *work.views[:6])
     mask = wp.from_torch(torch.zeros(F, P, H, W))
     none = [wp.zeros(0, dtype=int), wp.zeros((0, P, H, W), dtype=float)]  # no targets: no profiles
     profiles = [wp.zeros((0, P, H), dtype=float), wp.zeros((0, P, W), dtype=float), wp.zeros((0, P), dtype=float)]
-    raster.rasterize(wp.vec4(*c["camera_vec"]), c["sigma"], *views, *none, mask, *layers.views(), *profiles)
+    raster.rasterize(wp.vec4(*c["camera_vec"]), c["sigma"], *work.views[1:8], *none, mask, *work.views[8:11],
+                     *profiles)
     grad = wp.from_torch(c["weights"].to(torch.float32).contiguous())  # dL/dv of L = sum(weights * v)
-    raster.rasterize_backward(c["sigma"], *views[:5], *layers.views(), grad, *none, *profiles,
-                              wp.from_torch(moment, dtype=wp.vec3))
+    work.moment.zero_()  # a workspace from the pool holds an earlier call's moments
+    raster.rasterize_backward(c["sigma"], *work.views[1:6], *work.views[8:11], grad, *none, *profiles,
+                              work.views[11])
+    moment, buffers = work.moment, work
 
     v, u = torch.meshgrid(torch.arange(H) + 0.5, torch.arange(W) + 0.5, indexing="ij")
     p = torch.stack([u, v], -1).reshape(-1, 2).double()
@@ -462,3 +453,25 @@ def test_invalid_inputs_raise_value_errors():
         render_silhouettes(**s, intrinsics=FULL, sigma=0.0)
     with pytest.raises(ValueError, match="camera_height"):
         render_silhouettes(**{**s, "camera_height": torch.ones(2, dtype=torch.float64)}, intrinsics=FULL)
+
+
+def test_the_workspace_is_reused_and_never_shared_by_pending_backward_passes():
+    intrinsics = FULL.resized(30, 53)
+    targets = torch.rand(3, 3, 30, 53, generator=torch.Generator().manual_seed(5))
+    near, far = ({k: v.float() for k, v in SCENES[name].items()} for name in ("hand_in_front", "object_behind_static"))
+
+    def gradient(*scenes):  # of each scene's profile loss, all forward passes first
+        tips = [s["hand_pos"].clone().requires_grad_(True) for s in scenes]
+        losses = [sum(p.sum() for p in silhouette_profiles(**(s | {"hand_pos": tip}), intrinsics=intrinsics,
+                                                            targets=targets, sigma=1.0))
+                  for s, tip in zip(scenes, tips)]
+        return [torch.autograd.grad(loss, tip)[0] for loss, tip in zip(losses, tips)]
+
+    [alone] = gradient(near)
+    together, _ = gradient(near, far)  # the second forward pass ran before the first backward pass
+    torch.testing.assert_close(together, alone, rtol=0, atol=0)
+    free = _Workspace._pool[next(key for key in _Workspace._pool if key[2] == (30, 53))]
+    assert len(free) == 2
+    kept = list(free)
+    gradient(near)
+    assert len(free) == 2 and all(any(w is k for k in kept) for w in free)  # reused, none made

@@ -166,7 +166,8 @@ class _SoftSilhouettes(torch.autograd.Function):
     with each frame's index into them (F,), or None for the masks.
 
     Outputs ``(masks, rows, cols, overlap)``: the masks (empty with targets), or the
-    profiles (F, P, H), (F, P, W), (F, P) (empty without).
+    profiles (F, P, H), (F, P, W), (F, P) (empty without). The buffers between the two
+    passes come from a :class:`_Workspace` of the shape, held from forward to backward.
     """
 
     @staticmethod
@@ -175,24 +176,13 @@ class _SoftSilhouettes(torch.autograd.Function):
         ctx.set_materialize_grads(False)  # a profile the loss does not read seeds nothing
         F, P = pixels.shape[:2]
         device = pixels.device
-        f32, i32 = {"dtype": torch.float32, "device": device}, {"dtype": torch.int32, "device": device}
-        buffers = _Buffers(
-            vertices=pixels.detach().to(torch.float32).contiguous(),
-            hull=torch.zeros(F, P, raster.MAX_HULL, **i32),
-            count=torch.zeros(F, P, **i32),
-            line=torch.zeros(F, P, raster.MAX_HULL, 3, **f32),
-            bound=torch.zeros(F, P, 4, **f32),
-            plane_count=(planes[..., 3] < 0).sum(dim=-1, dtype=torch.int32),
-            plane=planes.to(torch.float32).contiguous(),
-        )
-        layers = _Layers(  # coverage and depth are read only where ``covered`` is set
-            covered=torch.zeros(F, *image_size, **i32),
-            coverage=torch.empty(F, P, *image_size, **f32),
-            depth=torch.empty(F, P, *image_size, **f32),
-        )
+        f32 = {"dtype": torch.float32, "device": device}
+        work = _Workspace.take(pixels.shape, planes.shape, tuple(image_size), device)
+        work.load(pixels, planes, visible)
         profiled = targets is not None
         along = _Targets(
-            frame=target_frame.to(torch.int32).contiguous() if profiled else torch.zeros(0, **i32),
+            frame=target_frame.to(torch.int32).contiguous() if profiled else torch.zeros(0, dtype=torch.int32,
+                                                                                         device=device),
             masks=targets.to(torch.float32).contiguous() if profiled else torch.zeros(0, P, *image_size, **f32),
         )
         made = F if profiled else 0
@@ -200,53 +190,104 @@ class _SoftSilhouettes(torch.autograd.Function):
         rows, cols = (torch.zeros(made, P, n, **f32) for n in image_size)
         overlap = torch.zeros(made, P, **f32)
         with warp_scope(device):
-            views = buffers.views()
-            visible = as_warp(visible.to(torch.int32))
-            raster.build_hulls(as_warp(sides), raster.CUTOFF * sigma, visible, *views[:5])
-            raster.rasterize(wp.vec4(*camera_vec), sigma, *views, *along.views(), as_warp(masks), *layers.views(),
-                             *(as_warp(x) for x in (rows, cols, overlap)))
-        ctx.save_for_backward(pixels.detach(), *buffers, *layers, *along)
-        ctx.sigma = sigma
+            raster.build_hulls(as_warp(sides), raster.CUTOFF * sigma, *work.views[:6])
+            raster.rasterize(wp.vec4(*camera_vec), sigma, *work.views[1:8], *along.views(), as_warp(masks),
+                             *work.views[8:11], *(as_warp(x) for x in (rows, cols, overlap)))
+        if ctx.needs_input_grad[0]:
+            ctx.work, ctx.along, ctx.sigma = work, along, sigma
+            ctx.save_for_backward(pixels.detach())
+        else:
+            work.give_back()
         return masks, rows, cols, overlap
 
     @staticmethod
     def backward(ctx, mask_grad, rows_grad, cols_grad, overlap_grad):
-        pixels, *saved = ctx.saved_tensors
-        buffers, layers, along = _Buffers(*saved[:7]), _Layers(*saved[7:10]), _Targets(*saved[10:])
-        F, P, H, W = layers.coverage.shape
-        profiled = len(along.frame) > 0
-        made = F if profiled else 0
+        (pixels,) = ctx.saved_tensors
+        work, along = ctx.work, ctx.along
+        F, P, H, W = work.coverage.shape
+        made = F if len(along.frame) > 0 else 0
 
         def seed(grad: torch.Tensor | None, *shape: int) -> torch.Tensor:
             return torch.zeros(shape, dtype=torch.float32, device=pixels.device) if grad is None else grad.float()
 
         grads = (seed(mask_grad, F - made, P, H, W), seed(rows_grad, made, P, H), seed(cols_grad, made, P, W),
                  seed(overlap_grad, made, P))
-        moment = torch.zeros(*buffers.hull.shape, 3, dtype=torch.float32, device=pixels.device)
+        work.moment.zero_()
         with warp_scope(pixels.device):
             mask_grad, rows_grad, cols_grad, overlap_grad = (as_warp(g) for g in grads)
-            raster.rasterize_backward(ctx.sigma, *buffers.views()[:5], *layers.views(), mask_grad, *along.views(),
-                                      rows_grad, cols_grad, overlap_grad, as_warp(moment, wp.vec3))
-        vertex_grad = _vertex_gradients(pixels, buffers.hull, buffers.count, moment)
+            raster.rasterize_backward(ctx.sigma, *work.views[1:6], *work.views[8:11], mask_grad, *along.views(),
+                                      rows_grad, cols_grad, overlap_grad, work.views[11])
+        vertex_grad = _vertex_gradients(pixels, work.hull, work.count, work.moment)
+        work.give_back()
+        del ctx.work
         return vertex_grad, None, None, None, None, None, None, None, None
 
 
-class _Buffers(NamedTuple):
-    """Raster buffers of the forward kernels, in their argument order (the backward kernel
-    reads the first five)."""
+class _Workspace:
+    """The raster's buffers for one shape, allocated once and reused by every call of that shape,
+    with their Warp views (made once), in the kernels' argument order:
 
-    vertices: torch.Tensor  # (F, P, V, 2) float32 projected vertices [px]
-    hull: torch.Tensor  # (F, P, MAX_HULL) int32 hull vertex indices, counter-clockwise
-    count: torch.Tensor  # (F, P) int32 hull sizes (0: not drawn)
-    line: torch.Tensor  # (F, P, MAX_HULL, 3) float32 edge lines (unit outward normal, offset)
-    bound: torch.Tensor  # (F, P, 4) float32 padded screen bounds (u0, v0, u1, v1) [px]
-    plane_count: torch.Tensor  # (F, P) int32 camera-facing planes
-    plane: torch.Tensor  # (F, P, 26, 4) float32 face planes, camera-facing first
+    visible (F, P) int32; vertices (F, P, V, 2) float32 projected vertices [px]; hull (F, P,
+    MAX_HULL) int32 hull vertex indices, counter-clockwise; count (F, P) int32 hull sizes (0:
+    not drawn); line (F, P, MAX_HULL, 3) edge lines (unit outward normal, offset); bound (F, P,
+    4) padded screen bounds (u0, v0, u1, v1) [px]; plane_count (F, P) int32 camera-facing
+    planes; plane (F, P, 26, 4) face planes, camera-facing first; covered (F, H, W) int32 bit
+    mask of the primitives where two or more cover a pixel (0 elsewhere), their coverages
+    coverage (F, P, H, W) and depths depth (F, P, H, W) [m]; moment (F, P, MAX_HULL, 3) the
+    backward pass's per-edge moments.
 
-    def views(self) -> list[wp.array]:
-        """Zero-copy Warp views."""
-        types = (wp.vec2, None, None, wp.vec3, wp.vec4, None, wp.vec4)
-        return [as_warp(buffer, dtype) for buffer, dtype in zip(self, types)]
+    A call takes a workspace from the pool (:meth:`take`) and gives it back once its backward
+    pass has run (:meth:`give_back`; at once without one), so calls whose backward passes are
+    pending never share one. The pool keeps the :data:`KEPT_SHAPES` latest shapes.
+    """
+
+    KEPT_SHAPES = 4
+    _pool: dict[tuple, list[_Workspace]] = {}
+
+    def __init__(self, key: tuple):
+        (F, P, V, _), plane_shape, (H, W), device = key
+        i32, f32 = {"dtype": torch.int32, "device": device}, {"dtype": torch.float32, "device": device}
+        self.key = key
+        self.visible = torch.zeros(F, P, **i32)
+        self.vertices = torch.zeros(F, P, V, 2, **f32)
+        self.hull = torch.zeros(F, P, raster.MAX_HULL, **i32)
+        self.count = torch.zeros(F, P, **i32)
+        self.line = torch.zeros(F, P, raster.MAX_HULL, 3, **f32)
+        self.bound = torch.zeros(F, P, 4, **f32)
+        self.plane_count = torch.zeros(F, P, **i32)
+        self.plane = torch.zeros(plane_shape, **f32)
+        self.covered = torch.zeros(F, H, W, **i32)
+        self.coverage = torch.zeros(F, P, H, W, **f32)
+        self.depth = torch.zeros(F, P, H, W, **f32)
+        self.moment = torch.zeros(F, P, raster.MAX_HULL, 3, **f32)
+        buffers = (self.visible, self.vertices, self.hull, self.count, self.line, self.bound, self.plane_count,
+                   self.plane, self.covered, self.coverage, self.depth, self.moment)
+        types = (None, wp.vec2, None, None, wp.vec3, wp.vec4, None, wp.vec4, None, None, None, wp.vec3)
+        with warp_scope(device):
+            self.views = [as_warp(buffer, dtype) for buffer, dtype in zip(buffers, types)]
+
+    @classmethod
+    def take(cls, vertex_shape, plane_shape, image_size: tuple[int, int], device: torch.device) -> _Workspace:
+        """A free workspace of this shape (a new one if none is free)."""
+        key = (tuple(vertex_shape), tuple(plane_shape), image_size, device)
+        free = cls._pool.pop(key, [])
+        cls._pool[key] = free  # the latest shape last: the pool forgets the oldest
+        while len(cls._pool) > cls.KEPT_SHAPES:
+            del cls._pool[next(iter(cls._pool))]
+        return free.pop() if free else cls(key)
+
+    def give_back(self) -> None:
+        """Return this workspace to the pool (kept while its shape is among the latest)."""
+        if self.key in self._pool:
+            self._pool[self.key].append(self)
+
+    def load(self, pixels: torch.Tensor, planes: torch.Tensor, visible: torch.Tensor) -> None:
+        """Copy a call's inputs in and clear what the kernels accumulate into (``covered``)."""
+        self.vertices.copy_(pixels.detach())
+        self.plane.copy_(planes)
+        self.plane_count.copy_((planes[..., 3] < 0).sum(dim=-1))
+        self.visible.copy_(visible)
+        self.covered.zero_()
 
 
 class _Targets(NamedTuple):
@@ -258,18 +299,6 @@ class _Targets(NamedTuple):
     def views(self) -> list[wp.array]:
         """Zero-copy Warp views."""
         return [as_warp(x) for x in self]
-
-
-class _Layers(NamedTuple):
-    """What the forward raster keeps, where two or more primitives cover a pixel, for the backward pass."""
-
-    covered: torch.Tensor  # (F, H, W) int32 bit mask of those primitives (0: at most one covers the pixel)
-    coverage: torch.Tensor  # (F, P, H, W) float32 their coverages c_k
-    depth: torch.Tensor  # (F, P, H, W) float32 their depths [m]
-
-    def views(self) -> list[wp.array]:
-        """Zero-copy Warp views."""
-        return [as_warp(layer) for layer in self]
 
 
 def _vertex_gradients(

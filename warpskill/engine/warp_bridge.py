@@ -4,8 +4,6 @@
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import functools
 from collections.abc import Iterator
 
 import torch
@@ -41,14 +39,14 @@ def as_warp(tensor: torch.Tensor, dtype=None, requires_grad: bool = False) -> wp
 @contextlib.contextmanager
 def warp_scope(device: torch.device) -> Iterator[None]:
     """Run Warp on the Torch device: its current stream on CUDA; on the CPU with denormal
-    floats flushed to zero (the mode is restored after), and :func:`keep_freed_memory`.
-    Velocities decaying while an object rests or is held pass through float32's denormal
-    range, where CPU arithmetic is about 100 times slower."""
+    floats flushed to zero (the mode is restored after). Velocities decaying while an object
+    rests or is held pass through float32's denormal range, where CPU arithmetic is about 100
+    times slower. (The raster reuses its image-sized buffers, :class:`~warpskill.engine.rendering._Workspace`,
+    so no allocator setting is needed.)"""
     if device.type == "cuda":
         with wp.ScopedStream(wp.stream_from_torch(device)):
             yield
         return
-    keep_freed_memory()
     flushing = torch.tensor(1e-40, dtype=torch.float32).item() == 0.0
     with wp.ScopedDevice("cpu"):
         if flushing or not torch.set_flush_denormal(True):
@@ -58,30 +56,3 @@ def warp_scope(device: torch.device) -> Iterator[None]:
             yield
         finally:
             torch.set_flush_denormal(False)
-
-
-_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameters
-
-
-@functools.cache
-def keep_freed_memory() -> bool:
-    """Ask glibc's allocator to keep the memory this process frees for reuse (once per process).
-
-    Every optimisation iteration allocates and frees the same image-sized buffers (the
-    raster's coverage and depth layers: megabytes each). By default glibc serves such blocks
-    with fresh ``mmap`` pages and returns them on free, so each reuse costs a page fault
-    per 4 KiB: a reconstruction of a few hundred iterations spends hundreds of thousands of
-    faults, about 5 % of its time in the kernel, where kept memory costs a few hundred.
-    Blocks up to 64 MiB then come from the heap, whose top is returned to the system only
-    beyond 1 GiB free; the peak memory is the same.
-
-    Returns:
-        Whether the setting took (False off glibc, e.g. on macOS or Windows: nothing changes).
-    """
-    try:
-        mallopt = getattr(ctypes.CDLL(None), "mallopt", None)
-    except (OSError, TypeError):  # no C library of the process to open (Windows)
-        return False
-    if mallopt is None:
-        return False
-    return bool(mallopt(_M_MMAP_THRESHOLD, 64 << 20)) and bool(mallopt(_M_TRIM_THRESHOLD, 1 << 30))
