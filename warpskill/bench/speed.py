@@ -21,8 +21,14 @@ plateau schedule may stop stage (b) early) or, with ``measure_full``, timed by r
 from __future__ import annotations
 
 import copy
+import json
+import os
+import statistics
+import subprocess
+import sys
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable, Sequence
 
 import torch
@@ -37,10 +43,10 @@ from warpskill.engine.reference.physics import simulate_reference
 from warpskill.engine.reference.raster import render_reference
 from warpskill.optimizer.batching import Backend, render_many, simulate_many
 from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.guess import OBJECT_DEPTH_HYPOTHESES, initial_guess
 from warpskill.optimizer.inputs import WorkingInputs, working_inputs
 from warpskill.optimizer.pipeline import optimize, optimize_many
 from warpskill.optimizer.scene import SceneTrajectories
-from warpskill.optimizer.guess import OBJECT_DEPTH_HYPOTHESES, initial_guess
 from warpskill.optimizer.stage_a import InitialParameters, initial_objective
 from warpskill.optimizer.stage_b import (
     PhysicalScene,
@@ -305,3 +311,110 @@ def bench_many(*, batches: Sequence[int] = (1, 8), devices: Sequence[str] = ("cp
     for r in rows:
         print(f"{r['device']:<7} {r['batch']:>4} {r['seconds']:>10.1f} {r['rate']:>8.3f} {r['succeeded']:>6}/{r['batch']}")
     return rows
+
+
+SETS = ("dev", "synthetic")
+DEV_FOLDER = "../shared/data/something_else_dev"
+
+
+def speed_cases(name: str, *, folder: str = DEV_FOLDER, seeds: int = 1, videos: Sequence[str] = ()) -> list[dict]:
+    """The cases of set ``name`` (:data:`SETS`): the development videos in ``folder`` (or ``videos`` of
+    them), or the 9 actions x ``seeds`` synthetic demonstrations (moderate noise)."""
+    if name not in SETS:
+        raise ValueError(f"set must be one of {SETS}, got {name!r}")
+    if name == "synthetic":
+        return [{"set": name, "action": a, "seed": s} for a in ACTIONS for s in range(seeds)]
+    from warpskill.data.box_annotations import read_something_else
+
+    folder = str(Path(folder).resolve())
+    table = read_something_else(f"{folder}/annotations.json", f"{folder}/phases.csv", f"{folder}/actions.csv")
+    return [{"set": name, "video": v, "folder": folder} for v in (videos or table)]
+
+
+class _Worker:
+    """A :mod:`warpskill.bench.stage_timing` process timing the checkout at ``root`` (one thread)."""
+
+    def __init__(self, root: Path):
+        env = dict(os.environ, PYTHONPATH=str(root), OMP_NUM_THREADS="1")
+        self.process = subprocess.Popen([sys.executable, str(Path(__file__).with_name("stage_timing.py"))],
+                                        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env, cwd=root)
+
+    def time(self, case: dict) -> dict:
+        self.process.stdin.write(json.dumps(case) + "\n")
+        self.process.stdin.flush()
+        line = self.process.stdout.readline()
+        if not line:
+            raise RuntimeError(f"the timing worker stopped (exit {self.process.wait()}) on {case}")
+        return json.loads(line)
+
+    def close(self) -> None:
+        self.process.stdin.close()
+        self.process.wait()
+
+
+def bench_speed_set(name: str, *, against: str | None = None, baseline: str | None = None, out: str | None = None,
+                    seeds: int = 1, videos: Sequence[str] = ()) -> dict:
+    """Per-stage speed of :func:`warpskill.optimize` over a set, one case after another on one core.
+
+    Args:
+        name: ``"dev"`` or ``"synthetic"`` (:func:`speed_cases`).
+        against: a checkout of the previous release (e.g. a git worktree of the previous commit),
+            timed in the same run, case by case alternating which goes first.
+        baseline: a JSON file this command wrote before (``out``), shown beside instead.
+        out: write this run's figures here (JSON), to be a later run's ``baseline``.
+        seeds, videos: which cases (:func:`speed_cases`).
+
+    Returns:
+        ``{"this": [...], "previous": [...] or None}``, one worker record per case.
+    """
+    cases = speed_cases(name, seeds=seeds, videos=videos)
+    roots = {"this": Path(__file__).resolve().parents[2]} | ({"previous": Path(against).resolve()} if against else {})
+    workers = {label: _Worker(root) for label, root in roots.items()}
+    results: dict = {label: [] for label in workers}
+    try:
+        for i, case in enumerate(cases):
+            for label in sorted(workers, reverse=i % 2 == 1):
+                results[label].append(workers[label].time(case))
+    finally:
+        for worker in workers.values():
+            worker.close()
+    if baseline and not against:
+        results["previous"] = json.loads(Path(baseline).read_text())["this"]
+    if out:
+        Path(out).write_text(json.dumps(results, indent=1))
+    _print_set_table(name, results)
+    return results
+
+
+def stage_figures(records: Sequence[dict], clock: str = "cpu_seconds") -> dict[str, dict[str, float]]:
+    """Per stage over the cases: ms per iteration (total time over total iterations), and the median
+    per case of iterations and launches; ``"video"``: the median and range of seconds per case. Times
+    by ``clock``: ``"cpu_seconds"`` (the process's CPU time) or ``"seconds"`` (wall)."""
+    figures = {}
+    for stage in sorted({s for r in records for s in r["stages"]}):
+        rows = [r["stages"][stage] for r in records if stage in r["stages"]]
+        per_iteration = sum(r[clock] for r in rows) / max(1, sum(r["iterations"] for r in rows))
+        figures[stage] = {"ms_per_iteration": 1e3 * per_iteration,
+                          "iterations": statistics.median(r["iterations"] for r in rows),
+                          "launches": statistics.median(r["launches"] for r in rows)}
+    seconds = [r[clock] for r in records]
+    figures["video"] = {"median_s": statistics.median(seconds), "min_s": min(seconds), "max_s": max(seconds)}
+    return figures
+
+
+def _print_set_table(name: str, results: dict) -> None:
+    now, before = stage_figures(results["this"]), results.get("previous") and stage_figures(results["previous"])
+    print(f"set {name}: {len(results['this'])} cases, one after another, one thread each"
+          + ("; previous release beside" if before else "") + "; CPU time of the process")
+    print(f"{'stage':<16} {'ms/iteration':>14} {'iterations':>14} {'launches':>16}  (this / previous; median per case)")
+    for stage in (s for s in now if s != "video"):
+        old = (before or {}).get(stage)
+        pair = lambda key, fmt: f"{now[stage][key]:{fmt}}" + (f" / {old[key]:{fmt}}" if old else "")  # noqa: E731
+        print(f"{stage:<16} {pair('ms_per_iteration', '.1f'):>14} {pair('iterations', '.0f'):>14} "
+              f"{pair('launches', '.0f'):>16}")
+    for label, records in results.items():
+        for clock in ("cpu_seconds", "seconds"):
+            video = stage_figures(records, clock)["video"]
+            kind = "CPU" if clock == "cpu_seconds" else "wall"
+            print(f"per case ({label}, {kind}): median {video['median_s']:.1f} s "
+                  f"({video['min_s']:.1f}-{video['max_s']:.1f} s)")

@@ -25,6 +25,14 @@ def register(commands) -> None:
     speed.add_argument("--scaling", action="store_true", help="also time iterations as frames, image size, B grow")
     speed.add_argument("--many", type=int, nargs="+", metavar="B",
                        help="also run warpskill.optimize_many on B synthetic demonstrations: demonstrations per second")
+    speed.add_argument("--set", choices=("dev", "synthetic"), dest="speed_set",
+                       help="instead: time warpskill.optimize per stage over a set, one case after another")
+    speed.add_argument("--against", metavar="CHECKOUT",
+                       help="with --set: also time this checkout (a git worktree of the previous commit), interleaved")
+    speed.add_argument("--baseline", metavar="FILE", help="with --set: the previous figures from a JSON file of -o")
+    speed.add_argument("-o", "--out", metavar="FILE", help="with --set: write this run's figures (JSON)")
+    speed.add_argument("--seeds", type=int, default=1, help="with --set synthetic: seeds per action (default: 1)")
+    speed.add_argument("--videos", nargs="+", default=(), help="with --set dev: a subset of the video ids")
     speed.set_defaults(run=_bench_speed)
     synthetic = bench.add_parser("synthetic", help="the 9 actions x N seeds: the paper's success table")
     synthetic.add_argument("--seeds", type=int, default=3, help="seeds per action (default: 3)")
@@ -137,8 +145,12 @@ def _bench_kernels(args) -> int:
 
 
 def _bench_speed(args) -> int:
-    from warpskill.bench.speed import bench_many, bench_speed  # torch and Warp: only for this command
+    from warpskill.bench.speed import bench_many, bench_speed, bench_speed_set  # torch and Warp: only here
 
+    if args.speed_set:
+        bench_speed_set(args.speed_set, against=args.against, baseline=args.baseline, out=args.out,
+                        seeds=args.seeds, videos=args.videos)
+        return 0
     devices = ["cpu"] if args.device == "cpu" else ["cpu", args.device]
     bench_speed(devices=devices, engines=args.engines, repeats=args.repeats, measure_full=args.full,
                 scaling=args.scaling)
