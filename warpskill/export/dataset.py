@@ -377,7 +377,7 @@ def _judge_skill(source: Source, request: ExportRequest, seed: int) -> tuple[Ski
                             f"{budget} ({_commonest([a.reason for a in tried if a.reason])})")
     if outcome.left_out:
         return outcome, []
-    return outcome, [(k, a) for k, a in enumerate(tried) if a.success or (request.keep_failures and a.plan)]
+    return outcome, [(k, a) for k, a in enumerate(tried) if a.success or (request.keep_failures and a.plan is not None)]
 
 
 def _reconstruction_note(recon: Reconstruction) -> str:
