@@ -189,3 +189,29 @@ def test_bad_sources_write_nothing(tmp_path, recon_path):
     with pytest.raises(ExportError, match="must be absent or empty"):
         export_lerobot(full, [recon_path], request)
     assert sorted(path.name for path in tmp_path.iterdir()) == ["broken.npz", "full"]
+
+
+def test_failed_episode_is_labelled(tmp_path):
+    """A kept failure (``--keep-failures``): no success nor reward on any frame, done on the last, its reason kept."""
+    from warpskill.contract.skill import Layout
+    from warpskill.export.dataset import _add_episode
+    from warpskill.export.lerobot import LeRobotWriter
+    from warpskill.export.rollouts import EE_POSE_NAMES, STATE_NAMES, Episode
+
+    rng = np.random.default_rng(0)
+    length = 5
+    episode = Episode(Layout(object=(0.1, 0.5, 0.3), statics=((0.3, 0.6, 0.0),)), rng.normal(size=(length, 8)),
+                      rng.normal(size=(length, 8)), rng.normal(size=(length, 7)),
+                      {"front": rng.integers(0, 256, (length, 8, 8, 3), dtype=np.uint8)}, "put the object behind the box",
+                      success=False, reason="replay fails behind")
+    with LeRobotWriter(tmp_path / "ds", fps=10, cameras={"observation.images.front": (8, 8)},
+                       vectors={"observation.state": STATE_NAMES, "observation.ee_pose": EE_POSE_NAMES,
+                                "action": STATE_NAMES},
+                       scalars={"next.reward": "float32", "next.done": "bool", "next.success": "bool"}) as writer:
+        assert _add_episode(writer, episode, "1044", attempt_index=3) == 0
+    data = pq.read_table(tmp_path / "ds/data/chunk-000/file-000.parquet").to_pydict()
+    row = pq.read_table(tmp_path / "ds/meta/episodes/chunk-000/file-000.parquet").to_pylist()[0]
+    assert data["next.success"] == [False] * length and data["next.reward"] == [0.0] * length
+    assert data["next.done"] == [False] * (length - 1) + [True]
+    assert (row["success"], row["failure"], row["skill"], row["attempt"]) == (False, "replay fails behind", "1044", 3)
+    assert json.loads(row["layout"]) == {"object": [0.1, 0.5, 0.3], "statics": [[0.3, 0.6, 0.0]]}
