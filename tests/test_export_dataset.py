@@ -202,7 +202,7 @@ def test_failed_episode_is_labelled(tmp_path):
     length = 5
     episode = Episode(Layout(object=(0.1, 0.5, 0.3), statics=((0.3, 0.6, 0.0),)), rng.normal(size=(length, 8)),
                       rng.normal(size=(length, 8)), rng.normal(size=(length, 7)),
-                      {"front": rng.integers(0, 256, (length, 8, 8, 3), dtype=np.uint8)}, "put the object behind the box",
+                      {"front": rng.integers(0, 256, (length, 8, 8, 3), dtype=np.uint8)}, "put it behind the box",
                       success=False, reason="replay fails behind")
     with LeRobotWriter(tmp_path / "ds", fps=10, cameras={"observation.images.front": (8, 8)},
                        vectors={"observation.state": STATE_NAMES, "observation.ee_pose": EE_POSE_NAMES,

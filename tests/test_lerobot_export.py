@@ -132,8 +132,8 @@ def test_export_lerobot_from_a_reconstruction(tmp_path):
     # The command line in its own process: MuJoCo's offscreen GL context must not meet the
     # one another test's replay video set up in this process.
     command = [sys.executable, "-c", "import sys; from warpskill.cli import main; sys.exit(main(sys.argv[1:]))",
-               "export", "lerobot", str(tmp_path / "ds"), str(recon_path), "--episodes", "1", "--image-size", "32", "32",
-               "--cameras", "front"]
+               "export", "lerobot", str(tmp_path / "ds"), str(recon_path), "--episodes", "1",
+               "--image-size", "32", "32", "--cameras", "front"]
     result = subprocess.run(command, capture_output=True, text=True)
     if result.returncode != 0 and "gl" in result.stderr.lower():
         pytest.skip(f"no offscreen renderer: {result.stderr.strip().splitlines()[-1]}")

@@ -269,7 +269,7 @@ class Attempt:
 
 
 def rollouts(skill: Skill, *, seed: int = 0) -> Iterator[Attempt]:
-    """Endless judged attempts of ``skill`` in the random layouts of ``seed`` (:func:`~warpskill.export.layouts.layouts`).
+    """Endless judged attempts of ``skill`` in the random layouts of ``seed`` (:func:`.layouts.layouts`).
 
     Raises:
         LayoutError: no layout of the skill fits the reachable table (from the sampler).
