@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 import warp as wp
+from device_support import warp_devices
 from warpskill.kernels.contact import contact_impulses, hand_tip_distance
 
 KP, KV, MU = 500.0, 5.0, 10.0
@@ -101,19 +102,20 @@ def _scenes(seed: int, num_scenes: int = 6, num_statics: int = 2) -> dict:
     }
 
 
-def _arrays(s: dict, scalar, requires_grad=False) -> dict:
+def _arrays(s: dict, scalar, requires_grad=False, device="cpu") -> dict:
     vec3, mat33 = wp.types.vector(3, scalar), wp.types.matrix((3, 3), scalar)
     return {
-        name: wp.array(value, dtype=mat33 if name.endswith("rot") else vec3, requires_grad=requires_grad)
+        name: wp.array(value, dtype=mat33 if name.endswith("rot") else vec3, requires_grad=requires_grad,
+                       device=device)
         for name, value in s.items()
     }
 
 
 def _launch_impulses(a: dict, scalar):
     vec3 = wp.types.vector(3, scalar)
-    B = a["object_pos"].shape[0]
-    jv = wp.zeros(B, dtype=vec3, requires_grad=a["object_pos"].requires_grad)
-    jw = wp.zeros(B, dtype=vec3, requires_grad=a["object_pos"].requires_grad)
+    B, device = a["object_pos"].shape[0], a["object_pos"].device
+    jv = wp.zeros(B, dtype=vec3, requires_grad=a["object_pos"].requires_grad, device=device)
+    jw = wp.zeros(B, dtype=vec3, requires_grad=a["object_pos"].requires_grad, device=device)
     contact_impulses(
         KP, KV, MU, a["object_size"], a["static_pos"], a["static_rot"], a["static_size"],
         a["object_pos"], a["object_rot"], a["object_vel"], a["object_ang_vel"], jv, jw,
@@ -121,16 +123,16 @@ def _launch_impulses(a: dict, scalar):
     return jv, jw
 
 
-def _check_adjoint_against_fd(s: dict, evaluate, seeds: list[np.ndarray], eps=1e-6, rtol=1e-6):
-    """Compare Warp's adjoint of sum(seed * output) with central differences, entry by entry."""
-    a = _arrays(s, wp.float64, requires_grad=True)
+def _check_adjoint_against_fd(s: dict, evaluate, seeds: list[np.ndarray], eps=1e-6, rtol=1e-6, device="cpu"):
+    """Compare Warp's adjoint of sum(seed * output) with central differences, entry by entry, on ``device``."""
+    a = _arrays(s, wp.float64, requires_grad=True, device=device)
     tape = wp.Tape()
     with tape:
         outputs = evaluate(a)
-    tape.backward(grads={out: wp.array(seed, dtype=out.dtype) for out, seed in zip(outputs, seeds)})
+    tape.backward(grads={out: wp.array(seed, dtype=out.dtype, device=device) for out, seed in zip(outputs, seeds)})
 
     def loss(values: dict) -> float:
-        outs = evaluate(_arrays(values, wp.float64))
+        outs = evaluate(_arrays(values, wp.float64, device=device))
         return sum(float((out.numpy() * seed).sum()) for out, seed in zip(outs, seeds))
 
     for name, value in s.items():
@@ -186,15 +188,17 @@ def test_static_cuboid_bottom_does_not_push():
     assert np.allclose(jw, 0.0, atol=1e-9)
 
 
-def test_impulse_adjoints_match_finite_differences():
+@pytest.mark.parametrize("device", warp_devices())
+def test_impulse_adjoints_match_finite_differences(device):
     s = _scenes(seed=4, num_scenes=3, num_statics=2)
     rng = np.random.default_rng(0)
     seeds = [rng.normal(size=(3, 3)), rng.normal(size=(3, 3))]
-    _check_adjoint_against_fd(s, lambda a: _launch_impulses(a, wp.float64), seeds, eps=1e-7, rtol=1e-6)
+    _check_adjoint_against_fd(s, lambda a: _launch_impulses(a, wp.float64), seeds, eps=1e-7, rtol=1e-6, device=device)
 
 
 def _launch_tip_distance(a: dict):
-    d = wp.zeros(a["object_pos"].shape[0], dtype=wp.float64, requires_grad=a["object_pos"].requires_grad)
+    d = wp.zeros(a["object_pos"].shape[0], dtype=wp.float64, requires_grad=a["object_pos"].requires_grad,
+                 device=a["object_pos"].device)
     hand_tip_distance(a["object_size"], a["hand_pos"], a["object_pos"], a["object_rot"], d)
     return (d,)
 
@@ -219,7 +223,8 @@ def test_tip_distance_matches_numpy_reference():
     assert d.numpy()[0] < 0 < d.numpy()[1:].min()
 
 
-def test_tip_distance_adjoints_match_finite_differences():
+@pytest.mark.parametrize("device", warp_devices())
+def test_tip_distance_adjoints_match_finite_differences(device):
     s = _tip_scene()
     seeds = [np.random.default_rng(1).normal(size=4)]
-    _check_adjoint_against_fd(s, _launch_tip_distance, seeds, eps=1e-7, rtol=1e-7)
+    _check_adjoint_against_fd(s, _launch_tip_distance, seeds, eps=1e-7, rtol=1e-7, device=device)

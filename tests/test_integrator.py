@@ -6,6 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import torch
+from device_support import torch_devices
 
 from warpskill.engine.records import SceneInputs
 from warpskill.engine.simulation import simulate
@@ -87,9 +88,10 @@ def test_grasp_scene_does_what_it_says():
     assert out.object_pos[1, -1, 2] < 0.05  # tumbled off onto the ground
 
 
-def test_rollout_adjoints_match_finite_differences():
+@pytest.mark.parametrize("device", torch_devices())
+def test_rollout_adjoints_match_finite_differences(device):
     torch.manual_seed(0)
-    inputs = _leaves(_scenes())
+    inputs = _leaves(_scenes().map(lambda x: x.to(device)))
     out = simulate(inputs, steps_per_frame=SPF, fps=FPS)
     weights = {name: torch.randn_like(value) for name, value in vars(out).items()}
     _projection(out, weights).backward()

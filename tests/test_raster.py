@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 import warp as wp
+from device_support import torch_devices
 
 from warpskill.contract.camera import Intrinsics
 from warpskill.engine.primitives import (
@@ -153,7 +154,7 @@ GROUPS = {
 
 
 def so3_exp(w: torch.Tensor) -> torch.Tensor:
-    zero = torch.zeros((), dtype=w.dtype)
+    zero = torch.zeros((), dtype=w.dtype, device=w.device)
     W = torch.stack(
         [torch.stack([zero, -w[2], w[1]]), torch.stack([w[2], zero, -w[0]]), torch.stack([-w[1], w[0], zero])]
     )
@@ -161,7 +162,7 @@ def so3_exp(w: torch.Tensor) -> torch.Tensor:
 
 
 def perturbed_loss(x: torch.Tensor, weights: torch.Tensor, intrinsics: Intrinsics) -> torch.Tensor:
-    s = GRAD_SCENE
+    s = {k: v.to(x.device) for k, v in GRAD_SCENE.items()}
     masks = render_silhouettes(
         s["hand_pos"] + x[0:3],
         so3_exp(x[3:6]) @ s["hand_rot"],
@@ -177,17 +178,18 @@ def perturbed_loss(x: torch.Tensor, weights: torch.Tensor, intrinsics: Intrinsic
 
 
 @pytest.mark.slow
-def test_gradients_match_finite_differences():
+@pytest.mark.parametrize("device", torch_devices())
+def test_gradients_match_finite_differences(device):
     intrinsics = FULL
     H, W = intrinsics.image_size
-    weights = torch.rand(2, 3, H, W, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
-    x = torch.zeros(26, dtype=torch.float64, requires_grad=True)
+    weights = torch.rand(2, 3, H, W, generator=torch.Generator().manual_seed(0), dtype=torch.float64).to(device)
+    x = torch.zeros(26, dtype=torch.float64, requires_grad=True, device=device)
     perturbed_loss(x, weights, intrinsics).backward()
     eps = 3e-4  # [m] and [rad]: ~0.1 px image motion
-    fd = torch.zeros(26, dtype=torch.float64)
+    fd = torch.zeros(26, dtype=torch.float64, device=device)
     with torch.no_grad():
         for i in range(26):
-            d = torch.zeros(26, dtype=torch.float64)
+            d = torch.zeros(26, dtype=torch.float64, device=device)
             d[i] = eps
             fd[i] = (perturbed_loss(d, weights, intrinsics) - perturbed_loss(-d, weights, intrinsics)) / (2 * eps)
     for group, idx in GROUPS.items():
