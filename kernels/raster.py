@@ -22,9 +22,9 @@ coverages c_k and their depths z_k. :func:`rasterize_backward` recomputes sd_k o
 per primitive, reads the other layers kept at the pixel, turns dL/dv (given, or from the
 profiles' gradients: dL/dv_ij = g_row_i + g_col_j + g_overlap t_ij) into dL/dsd_k and reduces, per hull edge e, the moments
 (sum g, sum g (p - a_e)) over the pixels whose distance edge is e (a_e the edge's first
-vertex), with one atomic add per (tile, primitive, edge). Depth order carries no gradient.
-All kernels are forward-only; the Torch bridge (``warpskill.engine.rendering``) turns
-moments into vertex gradients.
+vertex), which give the gradients of the edge's two vertices in closed form, added
+atomically per (tile, primitive, edge). Depth order carries no gradient. All kernels are
+forward-only.
 """
 
 from __future__ import annotations
@@ -437,6 +437,20 @@ def _mask_grad(
     return rows_grad_in[f, k, i] + cols_grad_in[f, k, j] + overlap_grad_in[f, k] * target_in[t, k, i, j]
 
 
+@wp.func
+def _edge_vertex_grads(g: float, m: wp.vec2, e: wp.vec2) -> tuple[wp.vec2, wp.vec2]:
+    """dL/da, dL/db of hull edge a -> b from its moments G = sum g and M = sum g (p - a), e = b - a.
+
+    sd(p) = cross(p - a, e) / |e| is linear in p, so sum_p g_p sd(p) = cross(M, e) / |e|; its
+    derivatives with respect to a and b follow with G, M held fixed and M's own dependence
+    on a (dM/da = -G)."""
+    length = wp.max(wp.length(e), 1.0e-12)
+    cross = m[0] * e[1] - m[1] * e[0]
+    grad_b = wp.vec2(-m[1], m[0]) / length - cross * e / (length * length * length)
+    normal = wp.vec2(e[1], -e[0]) / length
+    return -grad_b - g * normal, grad_b
+
+
 @wp.kernel
 def _backward(
     # Model:
@@ -457,7 +471,7 @@ def _backward(
     cols_grad_in: wp.array3d(dtype=float),
     overlap_grad_in: wp.array2d(dtype=float),
     # Data out:
-    moment_out: wp.array3d(dtype=wp.vec3),
+    vertex_grad_out: wp.array3d(dtype=wp.vec2),
 ):
     f, k, ty, tx = wp.tid()
     H, W = covered_in.shape[1], covered_in.shape[2]
@@ -510,10 +524,14 @@ def _backward(
                     acc[ek, 2] += g * (p[1] - origin[1])
     for e in range(count):
         if acc[e, 0] != 0.0:
-            a = vert_in[f, k, hull_in[f, k, e]]
+            ia = hull_in[f, k, e]
+            ib = hull_in[f, k, (e + 1) % count]
+            a = vert_in[f, k, ia]
             shift = origin - a
-            moment = wp.vec3(acc[e, 0], acc[e, 1] + acc[e, 0] * shift[0], acc[e, 2] + acc[e, 0] * shift[1])
-            wp.atomic_add(moment_out, f, k, e, moment)
+            moment = wp.vec2(acc[e, 1] + acc[e, 0] * shift[0], acc[e, 2] + acc[e, 0] * shift[1])
+            grad_a, grad_b = _edge_vertex_grads(acc[e, 0], moment, vert_in[f, k, ib] - a)
+            wp.atomic_add(vertex_grad_out, f, k, ia, grad_a)
+            wp.atomic_add(vertex_grad_out, f, k, ib, grad_b)
 
 
 def _tiles(height: int, width: int) -> tuple[int, int]:
@@ -587,13 +605,13 @@ def rasterize_backward(
     rows_grad: wp.array,
     cols_grad: wp.array,
     overlap_grad: wp.array,
-    moment: wp.array,
+    vertex_grad: wp.array,
 ) -> None:
-    """Per hull edge moments (sum g, sum g (p - a)) of g = dL/dsd into the zero-initialised
-    ``moment``, from the hulls and the layers :func:`rasterize` kept. dL/dv is ``mask_grad``
+    """dL/d(projected vertices) (F, P, V) into the zero-initialised ``vertex_grad``, from the
+    hulls and the layers :func:`rasterize` kept. dL/dv is ``mask_grad``
     (F, P, H, W), or where that is empty, comes from the gradients of the profiles (``rows_grad``
     (F, P, H), ``cols_grad`` (F, P, W), ``overlap_grad`` (F, P)) and ``target``."""
     dim = (coverage.shape[0], coverage.shape[1], *_tiles(coverage.shape[2], coverage.shape[3]))
     inputs = [sigma, vertices, hull, count, line, bound, covered, coverage, depth, mask_grad, target_frame, target,
               rows_grad, cols_grad, overlap_grad]
-    wp.launch(_backward, dim=dim, inputs=inputs, outputs=[moment], device=moment.device)
+    wp.launch(_backward, dim=dim, inputs=inputs, outputs=[vertex_grad], device=vertex_grad.device)

@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 import torch
-import warp as wp
 from device_support import torch_devices
 
 from warpskill.contract.camera import Intrinsics
@@ -223,13 +222,12 @@ def convex_hull(points: np.ndarray) -> list[int]:
 
 def dense_masks(pixels, planes, sides, K, image_size, sigma, cut=True):
     """Visible masks (F, P, H, W) without tiles or moments (with ``cut``, coverage cut off as
-    the kernels cut it: exactly 0 or 1 beyond +-CUTOFF sigma); also returns sd (F, P, HW) and
-    the hulls, so that dL/dsd can be read off by autograd."""
+    the kernels cut it: exactly 0 or 1 beyond +-CUTOFF sigma)."""
     F, P = pixels.shape[:2]
     H, W = image_size
     v, u = torch.meshgrid(torch.arange(H) + 0.5, torch.arange(W) + 0.5, indexing="ij")
     p = torch.stack([u, v], -1).reshape(-1, 2).to(pixels)
-    sds, hulls, masks = [], [], []
+    masks = []
     for f in range(F):
         cs, zs = [], []
         for k in range(P):
@@ -238,10 +236,6 @@ def dense_masks(pixels, planes, sides, K, image_size, sigma, cut=True):
             e = torch.roll(a, -1, 0) - a
             normal = torch.stack([e[:, 1], -e[:, 0]], -1) / e.norm(dim=-1, keepdim=True)
             sd = ((p[:, None] - a[None]) * normal[None]).sum(-1).max(-1).values
-            if sd.requires_grad:
-                sd.retain_grad()
-            sds.append(sd)
-            hulls.append(idx)
             limit = raster.CUTOFF * sigma if cut else float("inf")
             cs.append(torch.where(sd.abs() <= limit, torch.sigmoid(-sd / sigma), (sd < 0).to(sd)))
             with torch.no_grad():  # depth at the pixel, or at the nearest hull point outside
@@ -260,7 +254,7 @@ def dense_masks(pixels, planes, sides, K, image_size, sigma, cut=True):
                     front = (zs[m] < zs[k]) | ((zs[m] == zs[k]) & (m < k))
                     T = T * torch.where(front, 1 - cs[m], torch.ones_like(T))
             masks.append(cs[k] * T)
-    return torch.stack(masks).view(F, P, H, W), sds, hulls
+    return torch.stack(masks).view(F, P, H, W)
 
 
 def projected_scene(s: dict, intrinsics: Intrinsics):
@@ -299,9 +293,9 @@ def dense_case():
         "weights": torch.rand(F, P, H, W, generator=torch.Generator().manual_seed(1), dtype=torch.float64),
     }
     dense = pixels.clone().requires_grad_(True)
-    masks, sds, hulls = dense_masks(dense, planes, sides, K, (H, W), case["sigma"])
+    masks = dense_masks(dense, planes, sides, K, (H, W), case["sigma"])
     (masks * case["weights"]).sum().backward()
-    case.update(dense_masks=masks.detach(), dense_grad=dense.grad, dense_sd_grads=[sd.grad for sd in sds], hulls=hulls)
+    case.update(dense_masks=masks.detach(), dense_grad=dense.grad)
     assert int(((case["dense_masks"] > 0.01).sum(dim=1) >= 2).sum()) > 20, "the case must overlap soft layers"
     return case
 
@@ -324,7 +318,7 @@ def test_cut_off_drops_at_most_the_sigmoid_tail(dense_case):
     c = dense_case
     K = torch.as_tensor(FULL.resized(*c["image_size"]).K)
     with torch.no_grad():
-        uncut, _, _ = dense_masks(c["pixels"], c["planes"], c["sides"], K, c["image_size"], c["sigma"], cut=False)
+        uncut = dense_masks(c["pixels"], c["planes"], c["sides"], K, c["image_size"], c["sigma"], cut=False)
         masks, *_ = _SoftSilhouettes.apply(
             c["pixels"], c["planes"], c["visible"], c["sides"], c["camera_vec"], c["image_size"], c["sigma"], None, None
         )
@@ -355,7 +349,7 @@ def test_profiles_match_the_dense_masks_sums_and_gradients(dense_case):
     loss = (rows.double() * w_rows).sum() + (cols.double() * w_cols).sum() + (overlap.double() * w_overlap[..., 0]).sum()
     loss.backward()
     reference = c["pixels"].clone().requires_grad_(True)
-    masks, _, _ = dense_masks(reference, c["planes"], c["sides"], torch.as_tensor(FULL.resized(H, W).K), (H, W), c["sigma"])
+    masks = dense_masks(reference, c["planes"], c["sides"], torch.as_tensor(FULL.resized(H, W).K), (H, W), c["sigma"])
     weights = w_rows[..., :, None] + w_cols[..., None, :] + w_overlap[..., None] * targets.double()
     (masks * weights).sum().backward()
     rel = float((ours.grad - reference.grad).norm() / reference.grad.norm())
@@ -379,45 +373,6 @@ def test_profiles_read_each_frames_own_target_frame():
     torch.testing.assert_close(shared[2], (masks * targets).sum((-1, -2)), rtol=1e-5, atol=1e-3)
     with pytest.raises(ValueError, match="target_frame"):
         silhouette_profiles(**poses, intrinsics=intrinsics, targets=targets, sigma=1.0)  # 3 frames, 1 target
-
-
-def test_edge_moments_match_dense_reference(dense_case):
-    c = dense_case
-    pixels, (H, W) = c["pixels"], c["image_size"]
-    F, P = pixels.shape[:2]
-    wp.init()
-    work = _Workspace.take(pixels.shape, c["planes"].shape, (H, W), torch.device("cpu"))
-    work.load(pixels, c["planes"], c["visible"])
-    raster.build_hulls(wp.from_torch(c["sides"]), raster.CUTOFF * c["sigma"], *work.views[:6])
-    mask = wp.from_torch(torch.zeros(F, P, H, W))
-    none = [wp.zeros(0, dtype=int), wp.zeros((0, P, H, W), dtype=float)]  # no targets: no profiles
-    profiles = [wp.zeros((0, P, H), dtype=float), wp.zeros((0, P, W), dtype=float), wp.zeros((0, P), dtype=float)]
-    raster.rasterize(wp.vec4(*c["camera_vec"]), c["sigma"], *work.views[1:8], *none, mask, *work.views[8:11],
-                     *profiles)
-    grad = wp.from_torch(c["weights"].to(torch.float32).contiguous())  # dL/dv of L = sum(weights * v)
-    work.moment.zero_()  # a workspace from the pool holds an earlier call's moments
-    raster.rasterize_backward(c["sigma"], *work.views[1:6], *work.views[8:11], grad, *none, *profiles,
-                              work.views[11])
-    moment, buffers = work.moment, work
-
-    v, u = torch.meshgrid(torch.arange(H) + 0.5, torch.arange(W) + 0.5, indexing="ij")
-    p = torch.stack([u, v], -1).reshape(-1, 2).double()
-    for f in range(F):
-        for k in range(P):
-            idx, g = c["hulls"][f * P + k], c["dense_sd_grads"][f * P + k]  # hull, dL/dsd per pixel
-            n = len(idx)
-            assert int(buffers.count[f, k]) == n
-            a = pixels[f, k, idx]
-            e = torch.roll(a, -1, 0) - a
-            normal = torch.stack([e[:, 1], -e[:, 0]], -1) / e.norm(dim=-1, keepdim=True)
-            owner = ((p[:, None] - a[None]) * normal[None]).sum(-1).argmax(-1)  # the edge holding sd
-            slot = {(int(buffers.hull[f, k, j]), int(buffers.hull[f, k, (j + 1) % n])): j for j in range(n)}
-            scale = float(g.abs().sum())
-            for j in range(n):
-                sel = owner == j
-                expected = torch.cat([g[sel].sum()[None], (g[sel, None] * (p[sel] - a[j])).sum(0)])
-                got = moment[f, k, slot[(idx[j], idx[(j + 1) % n])]].double()
-                assert float((got - expected).abs().max()) < 1e-4 * scale * W, (f, k, j, got, expected)
 
 
 def test_empty_and_offscreen_give_zeros_and_finite_gradients():

@@ -212,12 +212,12 @@ class _SoftSilhouettes(torch.autograd.Function):
 
         grads = (seed(mask_grad, F - made, P, H, W), seed(rows_grad, made, P, H), seed(cols_grad, made, P, W),
                  seed(overlap_grad, made, P))
-        work.moment.zero_()
+        work.vertex_grad.zero_()
         with warp_scope(pixels.device):
             mask_grad, rows_grad, cols_grad, overlap_grad = (as_warp(g) for g in grads)
             raster.rasterize_backward(ctx.sigma, *work.views[1:6], *work.views[8:11], mask_grad, *along.views(),
                                       rows_grad, cols_grad, overlap_grad, work.views[11])
-        vertex_grad = _vertex_gradients(pixels, work.hull, work.count, work.moment)
+        vertex_grad = work.vertex_grad.to(pixels.dtype, copy=True)
         work.give_back()
         del ctx.work
         return vertex_grad, None, None, None, None, None, None, None, None
@@ -233,8 +233,8 @@ class _Workspace:
     4) padded screen bounds (u0, v0, u1, v1) [px]; plane_count (F, P) int32 camera-facing
     planes; plane (F, P, 26, 4) face planes, camera-facing first; covered (F, H, W) int32 bit
     mask of the primitives where two or more cover a pixel (0 elsewhere), their coverages
-    coverage (F, P, H, W) and depths depth (F, P, H, W) [m]; moment (F, P, MAX_HULL, 3) the
-    backward pass's per-edge moments.
+    coverage (F, P, H, W) and depths depth (F, P, H, W) [m]; vertex_grad (F, P, V, 2) the
+    backward pass's output.
 
     A call takes a workspace from the pool (:meth:`take`) and gives it back once its backward
     pass has run (:meth:`give_back`; at once without one), so calls whose backward passes are
@@ -259,10 +259,10 @@ class _Workspace:
         self.covered = torch.zeros(F, H, W, **i32)
         self.coverage = torch.zeros(F, P, H, W, **f32)
         self.depth = torch.zeros(F, P, H, W, **f32)
-        self.moment = torch.zeros(F, P, raster.MAX_HULL, 3, **f32)
+        self.vertex_grad = torch.zeros(F, P, V, 2, **f32)
         buffers = (self.visible, self.vertices, self.hull, self.count, self.line, self.bound, self.plane_count,
-                   self.plane, self.covered, self.coverage, self.depth, self.moment)
-        types = (None, wp.vec2, None, None, wp.vec3, wp.vec4, None, wp.vec4, None, None, None, wp.vec3)
+                   self.plane, self.covered, self.coverage, self.depth, self.vertex_grad)
+        types = (None, wp.vec2, None, None, wp.vec3, wp.vec4, None, wp.vec4, None, None, None, wp.vec2)
         with warp_scope(device):
             self.views = [as_warp(buffer, dtype) for buffer, dtype in zip(buffers, types)]
 
@@ -299,49 +299,6 @@ class _Targets(NamedTuple):
     def views(self) -> list[wp.array]:
         """Zero-copy Warp views."""
         return [as_warp(x) for x in self]
-
-
-def _vertex_gradients(
-    pixels: torch.Tensor, hull: torch.Tensor, count: torch.Tensor, moment: torch.Tensor
-) -> torch.Tensor:
-    """dL/d(projected vertices) from per-edge moments.
-
-    Along hull edge e from a to b (length L, outward normal n), sd(p) = cross(p - a, b - a) / L
-    is linear in p, so sum_p g_p sd(p) = cross(M, b - a) / L with M = sum_p g_p (p - a) and
-    G = sum_p g_p; its derivatives with respect to a and b follow with M, G held fixed and
-    M's own dependence on a (dM/da = -G).
-
-    Args:
-        pixels: (F, P, V, 2) projected vertices [px].
-        hull: (F, P, E) hull vertex indices; count: (F, P) hull sizes.
-        moment: (F, P, E, 3) per-edge (G, M).
-
-    Returns:
-        (F, P, V, 2) gradient, dtype of ``pixels``.
-    """
-    E = hull.shape[-1]
-    slot = torch.arange(E, device=hull.device)
-    used = slot < count.unsqueeze(-1)  # (F, P, E)
-    after = torch.where(slot + 1 < count.unsqueeze(-1), slot + 1, torch.zeros_like(slot))
-    ia = hull.long()
-    ib = torch.gather(ia, -1, after)
-
-    def at(index):
-        return torch.gather(pixels, 2, index.unsqueeze(-1).expand(*index.shape, 2))
-
-    a, b = at(ia), at(ib)
-    m = moment.to(pixels.dtype) * used.unsqueeze(-1)
-    G, M = m[..., 0:1], m[..., 1:]
-    e = b - a
-    length = e.norm(dim=-1, keepdim=True).clamp_min(1e-12)
-    cross = M[..., 0:1] * e[..., 1:2] - M[..., 1:2] * e[..., 0:1]
-    grad_b = torch.cat([-M[..., 1:2], M[..., 0:1]], dim=-1) / length - cross * e / length**3
-    normal = torch.cat([e[..., 1:2], -e[..., 0:1]], dim=-1) / length
-    grad_a = -grad_b - G * normal
-    grad = torch.zeros_like(pixels)
-    grad.scatter_add_(2, ia.unsqueeze(-1).expand_as(grad_a), grad_a)
-    grad.scatter_add_(2, ib.unsqueeze(-1).expand_as(grad_b), grad_b)
-    return grad
 
 
 def check_silhouette_inputs(
