@@ -78,7 +78,7 @@ def _carried(recon, layout):
 
 
 def _lerobot(args) -> int:
-    from warpskill.export.dataset import ExportError, ExportRequest, export_lerobot  # optional extra (pyarrow, av)
+    from warpskill.export import ExportError, ExportRequest, export_lerobot  # optional extra (pyarrow, av)
 
     robot.prefer_headless_gl()
     request = ExportRequest(episodes=args.episodes, fps=args.fps, image_size=tuple(args.image_size),
