@@ -247,6 +247,34 @@ class Trajectory:
         return [getattr(self, field.name) for field in dataclasses.fields(self)]
 
 
+@dataclasses.dataclass
+class Scratch:
+    """Warp arrays (B, T) of vec3 the rollout works in: the object's own velocities ``own_vel``
+    [m/s], ``own_ang_vel`` [rad/s] per state (T = S + 1), and the contact impulse sums
+    ``impulse_v`` [m/s^2], ``impulse_w`` [rad/s^2] per step (T = S), accumulated into: zero them
+    before each rollout (:meth:`clear`)."""
+
+    own_vel: wp.array
+    own_ang_vel: wp.array
+    impulse_v: wp.array
+    impulse_w: wp.array
+
+    @classmethod
+    def zeros(cls, num_scenes: int, num_steps: int, dtype, device, requires_grad: bool) -> "Scratch":
+        """Zeroed scratch for ``num_scenes`` scenes of ``num_steps`` steps of scalar type ``dtype``."""
+        vec3 = wp.types.vector(3, dtype)
+
+        def zeros(length: int) -> wp.array:
+            return wp.zeros((num_scenes, length), dtype=vec3, device=device, requires_grad=requires_grad)
+
+        return cls(zeros(num_steps + 1), zeros(num_steps + 1), zeros(num_steps), zeros(num_steps))
+
+    def clear(self) -> None:
+        """Zero the impulse sums (the velocities are written whole by every rollout)."""
+        self.impulse_v.zero_()
+        self.impulse_w.zero_()
+
+
 def rollout(
     config,
     dt: float,
@@ -261,25 +289,17 @@ def rollout(
     object_pos0: wp.array,
     object_rot0: wp.array,
     steps: Trajectory,
+    scratch: Scratch,
 ):
-    """Integrate B scenes over S = ``hand_vel.shape[1]`` steps of ``dt`` [s] into ``steps`` (B, S+1).
+    """Integrate B scenes over S = ``hand_vel.shape[1]`` steps of ``dt`` [s] into ``steps`` (B, S+1),
+    working in the cleared ``scratch`` (B, S + 1).
 
     ``config`` holds the physics constants (``warpskill.engine.simulation.PhysicsConfig``); arrays are
     (B,) (statics (B, K), ``hand_vel`` (B, S, 7) = v_h, w_h, grasp rate).
     """
-    num_scenes, num_steps = hand_vel.shape[0], hand_vel.shape[1]
-    dtype = hand_vel.dtype
-    device = hand_vel.device
-
-    def zeros(length: int) -> wp.array:  # scratch: own velocities and impulse sums per step
-        vec3, requires_grad = wp.types.vector(3, dtype), steps.hand_pos.requires_grad
-        return wp.zeros((num_scenes, length), dtype=vec3, device=device, requires_grad=requires_grad)
-
-    own_vel, own_ang_vel = zeros(num_steps + 1), zeros(num_steps + 1)
-    impulse_v, impulse_w = zeros(num_steps), zeros(num_steps)
     wp.launch(
-        _kernels(dtype)[0],
-        dim=num_scenes,
+        _kernels(hand_vel.dtype)[0],
+        dim=hand_vel.shape[0],
         inputs=[
             dt,
             config.kp,
@@ -308,14 +328,14 @@ def rollout(
             steps.tip_distance,
             steps.object_pos,
             steps.object_rot,
-            own_vel,
-            own_ang_vel,
+            scratch.own_vel,
+            scratch.own_ang_vel,
             steps.object_vel,
             steps.object_ang_vel,
-            impulse_v,
-            impulse_w,
+            scratch.impulse_v,
+            scratch.impulse_w,
         ],
-        device=device,
+        device=hand_vel.device,
     )
 
 

@@ -20,7 +20,7 @@ from warpskill.engine.primitives import (
     prism_planes,
 )
 from warpskill.engine.raycast import raycast_masks
-from warpskill.engine.rendering import _SoftSilhouettes, _Workspace, raster, render_silhouettes, silhouette_profiles
+from warpskill.engine.rendering import _POOL, _SoftSilhouettes, raster, render_silhouettes, silhouette_profiles
 
 HEIGHT, ELEVATION = 0.30, 0.50  # camera [m], [rad]
 FULL = Intrinsics.default(240, 427)
@@ -427,7 +427,7 @@ def test_the_workspace_is_reused_and_never_shared_by_pending_backward_passes():
     [alone] = gradient(near)
     together, _ = gradient(near, far)  # the second forward pass ran before the first backward pass
     torch.testing.assert_close(together, alone, rtol=0, atol=0)
-    free = _Workspace._pool[next(key for key in _Workspace._pool if key[2] == (30, 53))]
+    free = _POOL.free[next(key for key in _POOL.free if key[2] == (30, 53))]
     assert len(free) == 2
     kept = list(free)
     gradient(near)

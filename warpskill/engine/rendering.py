@@ -23,7 +23,7 @@ from warpskill.engine.primitives import (
     prism_planes,
 )
 from warpskill.engine.projection import project, world_to_camera
-from warpskill.engine.warp_bridge import as_warp, warp_scope
+from warpskill.engine.warp_bridge import WorkspacePool, as_warp, warp_scope
 from warpskill.kernels import raster
 
 _MAX_VERTICES = 2 * raster.MAX_SIDES
@@ -177,7 +177,7 @@ class _SoftSilhouettes(torch.autograd.Function):
         F, P = pixels.shape[:2]
         device = pixels.device
         f32 = {"dtype": torch.float32, "device": device}
-        work = _Workspace.take(pixels.shape, planes.shape, tuple(image_size), device)
+        work = _POOL.take((tuple(pixels.shape), tuple(planes.shape), tuple(image_size), device))
         work.load(pixels, planes, visible)
         profiled = targets is not None
         along = _Targets(
@@ -197,7 +197,7 @@ class _SoftSilhouettes(torch.autograd.Function):
             ctx.work, ctx.along, ctx.sigma = work, along, sigma
             ctx.save_for_backward(pixels.detach())
         else:
-            work.give_back()
+            _POOL.give_back(work.key, work)
         return masks, rows, cols, overlap
 
     @staticmethod
@@ -218,7 +218,7 @@ class _SoftSilhouettes(torch.autograd.Function):
             raster.rasterize_backward(ctx.sigma, *work.views[1:6], *work.views[8:11], mask_grad, *along.views(),
                                       rows_grad, cols_grad, overlap_grad, work.views[11])
         vertex_grad = work.vertex_grad.to(pixels.dtype, copy=True)
-        work.give_back()
+        _POOL.give_back(work.key, work)
         del ctx.work
         return vertex_grad, None, None, None, None, None, None, None, None
 
@@ -236,13 +236,9 @@ class _Workspace:
     coverage (F, P, H, W) and depths depth (F, P, H, W) [m]; vertex_grad (F, P, V, 2) the
     backward pass's output.
 
-    A call takes a workspace from the pool (:meth:`take`) and gives it back once its backward
-    pass has run (:meth:`give_back`; at once without one), so calls whose backward passes are
-    pending never share one. The pool keeps the :data:`KEPT_SHAPES` latest shapes.
+    A call takes one from :data:`_POOL` and gives it back once its backward pass has run (at
+    once without one).
     """
-
-    KEPT_SHAPES = 4
-    _pool: dict[tuple, list[_Workspace]] = {}
 
     def __init__(self, key: tuple):
         (F, P, V, _), plane_shape, (H, W), device = key
@@ -266,21 +262,6 @@ class _Workspace:
         with warp_scope(device):
             self.views = [as_warp(buffer, dtype) for buffer, dtype in zip(buffers, types)]
 
-    @classmethod
-    def take(cls, vertex_shape, plane_shape, image_size: tuple[int, int], device: torch.device) -> _Workspace:
-        """A free workspace of this shape (a new one if none is free)."""
-        key = (tuple(vertex_shape), tuple(plane_shape), image_size, device)
-        free = cls._pool.pop(key, [])
-        cls._pool[key] = free  # the latest shape last: the pool forgets the oldest
-        while len(cls._pool) > cls.KEPT_SHAPES:
-            del cls._pool[next(iter(cls._pool))]
-        return free.pop() if free else cls(key)
-
-    def give_back(self) -> None:
-        """Return this workspace to the pool (kept while its shape is among the latest)."""
-        if self.key in self._pool:
-            self._pool[self.key].append(self)
-
     def load(self, pixels: torch.Tensor, planes: torch.Tensor, visible: torch.Tensor) -> None:
         """Copy a call's inputs in and clear what the kernels accumulate into (``covered``)."""
         self.vertices.copy_(pixels.detach())
@@ -288,6 +269,9 @@ class _Workspace:
         self.plane_count.copy_((planes[..., 3] < 0).sum(dim=-1))
         self.visible.copy_(visible)
         self.covered.zero_()
+
+
+_POOL = WorkspacePool(_Workspace)
 
 
 class _Targets(NamedTuple):

@@ -17,8 +17,8 @@ import torch
 import warp as wp
 
 from warpskill.engine.records import Rollout, SceneInputs
-from warpskill.engine.warp_bridge import as_warp, warp_scope
-from warpskill.kernels.integrator import Trajectory, gather_frames, rollout
+from warpskill.engine.warp_bridge import WorkspacePool, as_warp, warp_scope
+from warpskill.kernels.integrator import Scratch, Trajectory, gather_frames, rollout
 
 __all__ = ["PhysicsConfig", "Rollout", "SceneInputs", "simulate", "substeps_per_frame"]
 
@@ -55,9 +55,27 @@ def substeps_per_frame(fps: float, config: PhysicsConfig = PhysicsConfig()) -> i
     return max(1, math.ceil(round(1.0 / (fps * config.max_dt), 9)))
 
 
+class _Workspace:
+    """The rollout's arrays for one shape, allocated once and reused: the per-step states
+    ``steps`` (B, S + 1), the per-frame ones ``frames`` (B, N) and the ``scratch``
+    (:mod:`warpskill.kernels.integrator`), with gradient buffers where ``requires_grad``. A call
+    takes one from :data:`_POOL` and gives it back once its backward pass has run (at once
+    without one); the tape's ``zero()`` leaves the gradients clear for the next."""
+
+    def __init__(self, key: tuple):
+        num_scenes, num_steps, num_frames, scalar, device, requires_grad = self.key = key
+        self.steps = Trajectory.zeros(num_scenes, num_steps + 1, scalar, device, requires_grad)
+        self.frames = Trajectory.zeros(num_scenes, num_frames, scalar, device, requires_grad)
+        self.scratch = Scratch.zeros(num_scenes, num_steps, scalar, device, requires_grad)
+
+
+_POOL = WorkspacePool(_Workspace)
+
+
 def _launch(config: PhysicsConfig, steps_per_frame: int, dt: float, inputs: SceneInputs, requires_grad: bool):
-    """Run the rollout on Warp views of ``inputs``; returns the tape, the input arrays (field
-    order) and the per-frame :class:`Trajectory`. Launches are recorded on the tape if ``requires_grad``."""
+    """Run the rollout on Warp views of ``inputs`` in a workspace from the pool; returns the tape,
+    the input arrays (field order) and the :class:`_Workspace` (its ``frames`` the per-frame
+    :class:`Trajectory`). Launches are recorded on the tape if ``requires_grad``."""
     wp.init()
     device = inputs.hand_pos0.device
     scalar = wp.float64 if inputs.hand_pos0.dtype == torch.float64 else wp.float32
@@ -67,14 +85,15 @@ def _launch(config: PhysicsConfig, steps_per_frame: int, dt: float, inputs: Scen
         for name, spec in SceneInputs.specs().items()
     }
     num_scenes, num_steps = arrays["hand_vel"].shape[0], arrays["hand_vel"].shape[1]
-    warp_device = wp.device_from_torch(device)
-    steps = Trajectory.zeros(num_scenes, num_steps + 1, scalar, warp_device, requires_grad)
-    frames = Trajectory.zeros(num_scenes, num_steps // steps_per_frame + 1, scalar, warp_device, requires_grad)
+    key = (num_scenes, num_steps, num_steps // steps_per_frame + 1, scalar, str(wp.device_from_torch(device)),
+           requires_grad)
+    work = _POOL.take(key)
     tape = wp.Tape()
     with warp_scope(device), tape if requires_grad else contextlib.nullcontext():
-        rollout(config, dt, steps=steps, **arrays)
-        gather_frames(steps_per_frame, steps, frames)
-    return tape, list(arrays.values()), frames
+        work.scratch.clear()
+        rollout(config, dt, steps=work.steps, scratch=work.scratch, **arrays)
+        gather_frames(steps_per_frame, work.steps, work.frames)
+    return tape, list(arrays.values()), work
 
 
 def _frame_arrays(frames: Trajectory) -> list[wp.array]:
@@ -83,7 +102,8 @@ def _frame_arrays(frames: Trajectory) -> list[wp.array]:
 
 
 def _to_torch(frames: Trajectory) -> tuple[torch.Tensor, ...]:
-    return tuple(wp.to_torch(array, requires_grad=False) for array in _frame_arrays(frames))
+    """Torch copies of the frames (the workspace is reused)."""
+    return tuple(wp.to_torch(array, requires_grad=False).clone() for array in _frame_arrays(frames))
 
 
 class _Simulate(torch.autograd.Function):
@@ -94,16 +114,15 @@ class _Simulate(torch.autograd.Function):
     def forward(ctx, config: PhysicsConfig, steps_per_frame: int, dt: float, *tensors: torch.Tensor):
         ctx.set_materialize_grads(False)  # unused outputs seed nothing
         ctx.device = tensors[0].device
-        ctx.tape, ctx.inputs, ctx.frames = _launch(
-            config, steps_per_frame, dt, SceneInputs(*tensors), requires_grad=True
-        )
-        return _to_torch(ctx.frames)
+        ctx.tape, ctx.inputs, ctx.work = _launch(config, steps_per_frame, dt, SceneInputs(*tensors),
+                                                 requires_grad=True)
+        return _to_torch(ctx.work.frames)
 
     @staticmethod
     def backward(ctx, *grad_outputs: torch.Tensor):
         grads = {
             array: as_warp(grad, array.dtype, requires_grad=False)
-            for array, grad in zip(_frame_arrays(ctx.frames), grad_outputs)
+            for array, grad in zip(_frame_arrays(ctx.work.frames), grad_outputs)
             if grad is not None
         }
         with warp_scope(ctx.device):
@@ -113,6 +132,7 @@ class _Simulate(torch.autograd.Function):
                 for array, needed in zip(ctx.inputs, ctx.needs_input_grad[3:])
             ]
             ctx.tape.zero()
+        _POOL.give_back(ctx.work.key, ctx.work)
         return (None, None, None, *input_grads)
 
 
@@ -148,5 +168,6 @@ def simulate(
     tensors = inputs.tensors()
     if torch.is_grad_enabled() and any(tensor.requires_grad for tensor in tensors):
         return Rollout(*_Simulate.apply(config, int(steps_per_frame), dt, *tensors))
-    _, _, frames = _launch(config, int(steps_per_frame), dt, inputs, requires_grad=False)
-    return Rollout(*_to_torch(frames))
+    _, _, work = _launch(config, int(steps_per_frame), dt, inputs, requires_grad=False)
+    _POOL.give_back(work.key, work)
+    return Rollout(*_to_torch(work.frames))

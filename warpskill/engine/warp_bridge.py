@@ -56,3 +56,27 @@ def warp_scope(device: torch.device) -> Iterator[None]:
             yield
         finally:
             torch.set_flush_denormal(False)
+
+
+class WorkspacePool:
+    """Engine buffers by shape, allocated once and reused: :meth:`take` hands out a free workspace
+    of a shape (made with ``make(key)`` when none is free), :meth:`give_back` returns it once the
+    call that took it is done (its backward pass has run), so calls still pending never share
+    one. Only the ``kept`` latest shapes are kept."""
+
+    def __init__(self, make, kept: int = 4):
+        self.make, self.kept = make, kept
+        self.free: dict[tuple, list] = {}
+
+    def take(self, key: tuple):
+        """A free workspace of shape ``key`` (a new one if none is free)."""
+        free = self.free.pop(key, [])
+        self.free[key] = free  # the latest shape last: the pool forgets the oldest
+        while len(self.free) > self.kept:
+            del self.free[next(iter(self.free))]
+        return free.pop() if free else self.make(key)
+
+    def give_back(self, key: tuple, workspace) -> None:
+        """Return ``workspace`` of shape ``key`` (kept while its shape is among the latest)."""
+        if key in self.free:
+            self.free[key].append(workspace)
