@@ -10,15 +10,32 @@ commit is measured exactly as the current one.
 
 from __future__ import annotations
 
+import importlib.util
 import json
+import os
 import sys
 import time
 from collections import defaultdict
+from pathlib import Path
 
-import torch
-import warp as wp
 
-import warpskill.optimizer.pipeline as pipeline
+def _own_kernels(root: Path) -> None:
+    """Import ``warpskill.kernels`` from ``root/kernels``: the package maps it there, and an
+    editable install of another checkout would otherwise supply its own."""
+    init = root / "kernels" / "__init__.py"
+    spec = importlib.util.spec_from_file_location("warpskill.kernels", init,
+                                                  submodule_search_locations=[str(init.parent)])
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["warpskill.kernels"] = module
+    spec.loader.exec_module(module)
+
+
+_own_kernels(Path(os.environ["PYTHONPATH"].split(os.pathsep)[0]))
+
+import torch  # noqa: E402
+import warp as wp  # noqa: E402
+
+import warpskill.optimizer.pipeline as pipeline  # noqa: E402
 
 _count = {"launches": 0}
 _stages: dict[str, dict[str, float]] = defaultdict(
@@ -92,8 +109,9 @@ def main() -> None:
         start, cpu = time.perf_counter(), time.process_time()
         pipeline.optimize(demo, progress=False, seed=seed)
         seconds, cpu_seconds = time.perf_counter() - start, time.process_time() - cpu
-        print(json.dumps({"case": case, "seconds": seconds, "cpu_seconds": cpu_seconds, "stages": dict(_stages)}),
-              flush=True)
+        print(json.dumps({"case": case, "seconds": seconds, "cpu_seconds": cpu_seconds, "stages": dict(_stages),
+                          "code": str(Path(pipeline.__file__).parents[2]),
+                          "kernels": str(Path(sys.modules["warpskill.kernels"].__file__).parent)}), flush=True)
 
 
 if __name__ == "__main__":
