@@ -18,6 +18,9 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
+import torch
+import warp as wp
+
 
 def _own_kernels(root: Path) -> None:
     """Import ``warpskill.kernels`` from ``root/kernels``: the package maps it there, and an
@@ -29,13 +32,6 @@ def _own_kernels(root: Path) -> None:
     sys.modules["warpskill.kernels"] = module
     spec.loader.exec_module(module)
 
-
-_own_kernels(Path(os.environ["PYTHONPATH"].split(os.pathsep)[0]))
-
-import torch  # noqa: E402
-import warp as wp  # noqa: E402
-
-import warpskill.optimizer.pipeline as pipeline  # noqa: E402
 
 _count = {"launches": 0}
 _stages: dict[str, dict[str, float]] = defaultdict(
@@ -88,7 +84,7 @@ def demonstration(case: dict):
     return make_demonstration(case["action"], seed=case["seed"], noise="moderate"), case["seed"]
 
 
-def _warm_up() -> None:
+def _warm_up(pipeline) -> None:
     """One short optimisation: the kernels loaded and Torch's one-off imports done outside the timing."""
     from warpskill.optimizer.config import OptimizeConfig
     from warpskill.synthetic import make_demonstration
@@ -98,10 +94,14 @@ def _warm_up() -> None:
 
 
 def main() -> None:
+    """Time the cases read from stdin with the code of the checkout first on ``PYTHONPATH``."""
+    _own_kernels(Path(os.environ["PYTHONPATH"].split(os.pathsep)[0]))
+    import warpskill.optimizer.pipeline as pipeline
+
     torch.set_num_threads(1)
     wp.launch = _counting_launch(wp.launch)
     pipeline.minimise = _timed_minimise(pipeline.minimise)
-    _warm_up()
+    _warm_up(pipeline)
     for line in sys.stdin:
         case = json.loads(line)
         demo, seed = demonstration(case)
