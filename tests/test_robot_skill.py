@@ -63,11 +63,6 @@ def test_the_robot_stands_where_it_can_do_the_task():
     np.testing.assert_allclose(again.base, plan.base)
 
 
-def onset(recon) -> int:
-    """The grasp onset: the first frame the object is held (until it, the robot's object rests there)."""
-    return int(np.flatnonzero(recon.grasped > 0.5)[0])
-
-
 def test_the_hand_far_away_before_the_contact_never_fails_the_plan():
     recon = truth("push_left_to_right", 0)
     k_on = int(np.flatnonzero(recon.grasped > 0.5)[0])
@@ -93,12 +88,11 @@ def test_a_plate_wider_than_the_gripper_is_substituted_and_picked_up(tmp_path):
     assert "wider than the gripper's 0.074 m usable opening" in plan.note
     assert plan.object_size[2] == pytest.approx(PLATE[2])  # height kept
     assert np.all(plan.object_size[:2] <= 0.074)  # the horizontal extents fit the gripper
-    # The demonstrated centre path is kept; the thin object rests on the table at the start, where it is grasped.
-    k_on = onset(recon)
-    np.testing.assert_allclose(plan.object_pos[k_on:, :2], recon.object_pos[k_on:, :2])
-    vertical = np.abs(recon.object_rot[k_on, 2])  # the cuboid's axes' share of the vertical
+    # The demonstrated centre path is kept; the thin object rests on the table at the start.
+    np.testing.assert_allclose(plan.object_pos[:, :2], recon.object_pos[:, :2])
+    vertical = np.abs(recon.object_rot[0, 2])  # the cuboid's axes' share of the vertical
     lowest = plan.object_pos[0, 2] - 0.5 * vertical @ plan.object_size
-    assert lowest == pytest.approx(recon.object_pos[k_on, 2] - 0.5 * vertical @ recon.object_size, abs=1e-6)
+    assert lowest == pytest.approx(recon.object_pos[0, 2] - 0.5 * vertical @ recon.object_size, abs=1e-6)
     assert_admissible(recon, plan)
     result = robot.replay(plan, recon)
     assert result.success, result.evaluation.checks
@@ -125,7 +119,7 @@ def test_static_sizes_move_the_resting_heights():
     fitted, note = fit_sizes(recon, static_sizes=taller, keep_size=True)
     assert note == ""
     assert fitted.static_pos[0, 2] == pytest.approx(recon.static_pos[0, 2] + 0.02)  # its bottom stays on the table
-    assert fitted.object_pos[0, 2] == pytest.approx(recon.object_pos[onset(recon), 2])  # starts on the table
+    assert fitted.object_pos[0, 2] == pytest.approx(recon.object_pos[0, 2])  # starts on the table
     assert fitted.object_pos[-1, 2] == pytest.approx(recon.object_pos[-1, 2] + 0.04)  # ends on the taller top
     with pytest.raises(ValueError, match="static size"):
         fit_sizes(recon, static_sizes=[(0.1, 0.1, 0.1)] * 2)
@@ -159,13 +153,12 @@ def test_a_tilted_cuboid_rests_on_a_face(degrees):
     tilted = dataclasses.replace(recon, object_rot=tilt @ recon.object_rot)
     fitted, note = fit_sizes(tilted)
     assert note == ""
-    k_on = onset(recon)
     corners = cuboid_corners(fitted.object_pos[0], fitted.object_rot[0], fitted.object_size)
     lowest = np.sort(corners[:, 2])[:4]
     np.testing.assert_allclose(lowest, lowest[0], atol=1e-9)  # a face down
-    before = cuboid_corners(tilted.object_pos[k_on], tilted.object_rot[k_on], tilted.object_size)[:, 2].min()
+    before = cuboid_corners(tilted.object_pos[0], tilted.object_rot[0], tilted.object_size)[:, 2].min()
     assert lowest[0] == pytest.approx(before, abs=1e-9)  # on the same support
-    np.testing.assert_allclose(fitted.object_pos[k_on:, :2], tilted.object_pos[k_on:, :2])
+    np.testing.assert_allclose(fitted.object_pos[:, :2], tilted.object_pos[:, :2])
 
 
 def test_placements_are_ranked_short_of_full_stretch():

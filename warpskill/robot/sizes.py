@@ -174,16 +174,17 @@ def _onset(recon: Reconstruction) -> int:
 
 
 def _still_until_onset(recon: Reconstruction) -> Reconstruction:
-    """``recon`` with the object at its onset pose in every frame before the grasp onset.
+    """``recon`` with the object at its onset place and rotation in every frame before the grasp onset.
 
-    Nothing moves an object before the hand touches it: a reconstruction's drift there (a
-    6 cm slide of an untouched object) would leave the robot's grasp where the object is not.
+    Nothing moves an object over the table before the hand touches it: a reconstruction's
+    drift there (a 6 cm slide of an untouched object) would leave the robot's grasp where the
+    object is not. Its height stays each frame's own (an object settling onto its support).
     """
     k = _onset(recon)
     if k == 0:
         return recon
     object_pos, object_rot = recon.object_pos.copy(), recon.object_rot.copy()
-    object_pos[:k], object_rot[:k] = object_pos[k], object_rot[k]
+    object_pos[:k, :2], object_rot[:k] = object_pos[k, :2], object_rot[k]
     return dataclasses.replace(recon, object_pos=object_pos, object_rot=object_rot)
 
 
