@@ -7,6 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from warpskill.bench.outcomes import load_outcomes
+from warpskill.bench.rulers import hand_ruled_size
 from warpskill.cli import main
 from warpskill.contract.demonstration import DemonstrationError
 from warpskill.contract.nouns import SIZES
@@ -125,6 +127,12 @@ def test_bench_reports_each_videos_reconstruction_time_apart_from_its_pictures(t
     # The object's size against its noun's (the placeholder "cup"), from the saved reconstruction.
     largest = Reconstruction.load(tmp_path / "out" / "7" / "reconstruction.npz").object_size.max()
     assert f"object size / its noun's typical size (largest edge): median {largest / SIZES['cup'].edges[-1]:.2f}x" in out
+    # ... and against the hand's measure of it (the object's box over the hand's in the touching frames).
+    video = read_something_else(*paths)["7"]
+    by_hand = largest / hand_ruled_size(something_else_demonstration(video)[0])
+    assert f"object size / the hand's measure of it (object box over hand box, a hand 19 cm long): " \
+           f"median {by_hand:.2f}x" in out
+    assert load_outcomes(tmp_path / "out")["7"].errors["hand_ratio"] == pytest.approx(by_hand)
 
 
 @pytest.mark.skipif(DEV is None, reason="the shared development data is not next to the repository")

@@ -28,9 +28,10 @@ from warpskill.engine.projection import world_to_camera
 
 OUTCOMES_JSON = "outcomes.json"
 OUTCOMES_CSV = "outcomes.csv"
-ERROR_KEYS = ("centre", "hand", "size", "camera_height", "elevation", "scale", "noun_ratio")
-"""Key errors kept per case (see :func:`camera_frame_errors`; ``noun_ratio``: the object's
-largest edge over its noun's typical one, on real videos)."""
+ERROR_KEYS = ("centre", "hand", "size", "camera_height", "elevation", "scale", "noun_ratio", "hand_ratio")
+"""Key errors kept per case (see :func:`camera_frame_errors`; on real videos ``noun_ratio``: the
+object's largest edge over its noun's typical one, ``hand_ratio``: over the hand's measure of it,
+:func:`~warpskill.bench.rulers.hand_ruler_ratio`)."""
 
 
 @dataclasses.dataclass(frozen=True)

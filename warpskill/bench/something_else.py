@@ -38,17 +38,19 @@ from warpskill.bench.end_to_end import (
     timing_lines,
 )
 from warpskill.bench.outcomes import CaseOutcome, folder_outcomes, record_outcomes
+from warpskill.bench.rulers import hand_ruler_ratio
 from warpskill.cluster import INSTALL_HINT, optimize_folder, ray_available
 from warpskill.contract.evaluation import evaluate, success_table
-from warpskill.contract.nouns import size_ratio
+from warpskill.contract.nouns import HAND_LENGTH, size_ratio
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
 from warpskill.data.box_annotations import (
-    object_noun as video_noun,
-)
-from warpskill.data.box_annotations import (
+    SomethingElseVideo,
     read_something_else,
     something_else_demonstration,
+)
+from warpskill.data.box_annotations import (
+    object_noun as video_noun,
 )
 from warpskill.optimizer.options import OptimizeOptions
 from warpskill.optimizer.pipeline import optimize
@@ -168,15 +170,19 @@ def _with_outcomes(result: dict, out: Path, table, vids, baseline, save_baseline
     compared with ``baseline``."""
     cases = {vid: table[vid].action for vid in vids if table[vid].action}
     ratios = noun_size_ratios(out, {vid: object_noun or video_noun(table[vid]) for vid in vids})
-    outcomes = [_with_size_and_robot(o, ratios.get(o.case), result.get("robot"))
+    by_hand = hand_size_ratios(out, {vid: table[vid] for vid in vids})
+    outcomes = [_with_size_and_robot(o, {"noun_ratio": ratios.get(o.case), "hand_ratio": by_hand.get(o.case)},
+                                     result.get("robot"))
                 for o in folder_outcomes(out, cases, result["failures"])]
     record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
-    return {**result, "outcomes": outcomes, "size_ratios": ratios}
+    return {**result, "outcomes": outcomes, "size_ratios": ratios, "hand_ratios": by_hand}
 
 
-def _with_size_and_robot(outcome: CaseOutcome, noun_ratio: float | None, robots: dict | None) -> CaseOutcome:
-    """A video's outcome with its size against its noun's and (where the robot step ran) the robot's record."""
-    errors = outcome.errors if noun_ratio is None else {**outcome.errors, "noun_ratio": noun_ratio}
+def _with_size_and_robot(outcome: CaseOutcome, size_ratios: dict[str, float | None],
+                         robots: dict | None) -> CaseOutcome:
+    """A video's outcome with its size ratios (``noun_ratio``, ``hand_ratio``; None: not measured) and
+    (where the robot step ran) the robot's record."""
+    errors = {**outcome.errors, **{key: ratio for key, ratio in size_ratios.items() if ratio is not None}}
     if robots is None or outcome.case not in robots:
         return dataclasses.replace(outcome, errors=errors)
     robot = robots[outcome.case]
@@ -205,6 +211,25 @@ def noun_size_ratios(out: Path, nouns: dict[str, str | None]) -> dict[str, float
                if ratio is not None and not 1 / NEAR_TYPICAL <= ratio <= NEAR_TYPICAL]
         if far:
             print(f"  beyond {NEAR_TYPICAL:g}x: {', '.join(far)}")
+    return ratios
+
+
+def hand_size_ratios(out: Path, videos: dict[str, SomethingElseVideo]) -> dict[str, float | None]:
+    """Each reconstructed object's size against the hand's measure of it
+    (:func:`~warpskill.bench.rulers.hand_ruler_ratio`; None: no frame to measure), per video id
+    with a reconstruction in ``out``; prints their median."""
+    ratios = {}
+    for vid, video in videos.items():
+        path = out / vid / ResultsFolder.RECONSTRUCTION
+        if path.exists() and video.action:
+            demo, _ = something_else_demonstration(video)
+            ratios[vid] = hand_ruler_ratio(Reconstruction.load(path).object_size, demo)
+    known = [ratio for ratio in ratios.values() if ratio is not None]
+    if known:
+        within = sum(1 / NEAR_TYPICAL <= ratio <= NEAR_TYPICAL for ratio in known)
+        print(f"object size / the hand's measure of it (object box over hand box, a hand {HAND_LENGTH * 100:.0f} cm "
+              f"long): median {statistics.median(known):.2f}x ({min(known):.2f}-{max(known):.2f}x over {len(known)} "
+              f"videos, {within} within {NEAR_TYPICAL:g}x)")
     return ratios
 
 
