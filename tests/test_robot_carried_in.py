@@ -10,11 +10,10 @@ from robot_support import require_robot
 
 robot = require_robot("placo", "mujoco")
 from warpskill.contract.reconstruction import Reconstruction  # noqa: E402
-from warpskill.synthetic import make_demonstration  # noqa: E402
 from warpskill.robot import retargeting  # noqa: E402
 from warpskill.robot.model import make_scene  # noqa: E402
 from warpskill.robot.sizes import clear_path, fit_sizes, rest_until  # noqa: E402
-
+from warpskill.synthetic import make_demonstration  # noqa: E402
 
 JOIN = 24  # put_next_to 0 carries the cuboid at this frame; before it, the cuboid comes from far to the left
 
@@ -135,3 +134,18 @@ def test_an_object_grasped_later_keeps_its_start():
     assert note == fitted_note
     for field in dataclasses.fields(Reconstruction):
         np.testing.assert_array_equal(getattr(robot_recon, field.name), getattr(clear_path(fitted), field.name))
+
+
+@pytest.mark.slow
+def test_an_object_first_touched_out_of_reach_is_taken_over_where_the_robot_can():
+    x_join = truth().object_pos[JOIN, 0]
+    carried = carried_in(np.linspace(x_join - 2.0, x_join, JOIN + 1)[:-1])  # from 2 m away, 1 m/s
+    grasped = carried.grasped.copy()
+    grasped[:3] = 0.0  # first touched at frame 3, 1.75 m off: the demonstration as it is has no plan
+    recon = dataclasses.replace(carried, grasped=grasped)
+    with pytest.raises(robot.PlanError):
+        retargeting._plan_anywhere(robot.robot_reconstruction(recon)[0], None, True)
+    plan = robot.retarget(recon)
+    taken_over, _ = robot.robot_reconstruction(carried)  # where an object carried into view is taken
+    np.testing.assert_allclose(plan.object_pos[0], taken_over.object_pos[0])
+    assert robot.replay(plan, recon, engine="mujoco").success

@@ -102,6 +102,11 @@ def retarget(recon: Reconstruction | Skill, *, layout: Layout | None = None, pla
         keep_size: refuse (PlanError) a grasped cuboid too wide for the gripper instead of
             substituting one that fits.
 
+    A demonstration that gives no plan as it is (its object first touched out of the arm's
+    reach: far off, or still being swung into view) is planned once more with the object taken
+    over where the robot can do the task from, as one carried into view is
+    (:func:`robot_reconstruction`).
+
     Returns:
         The plan, with ``planning_time`` [s], the placement and the sizes used set.
 
@@ -122,9 +127,36 @@ def retarget(recon: Reconstruction | Skill, *, layout: Layout | None = None, pla
         layout = skill.layout if layout is None else layout
         recon = skill.apply(layout)
         check_reach(recon, None if auto else placement)
-    recon, note = robot_reconstruction(recon, placement=Placement() if auto else placement, object_size=object_size,
-                                       static_sizes=static_sizes, keep_size=keep_size,
-                                       onset=0 if layout is not None else None)
+    sizes = {"object_size": object_size, "static_sizes": static_sizes, "keep_size": keep_size}
+    where = Placement() if auto else placement
+    robot_recon, note = robot_reconstruction(recon, placement=where, onset=0 if layout is not None else None, **sizes)
+    try:
+        plan = _plan_anywhere(robot_recon, placement, auto)
+    except PlanError as error:
+        if layout is not None or recon.grasped[0] > 0.5:
+            raise
+        plan, note = _taken_over(recon, where, placement, auto, sizes, error)
+    plan.note = note
+    plan.layout = layout
+    plan.planning_time = time.perf_counter() - started
+    return plan
+
+
+def _taken_over(recon: Reconstruction, where: Placement, placement, auto: bool, sizes: dict,
+                error: PlanError) -> tuple[RobotPlan, str]:
+    """The plan with the object taken over as one carried into view (``swung_in``: first touched out
+    of the arm's reach, far off or still being swung in), and the sizes' note; ``error``, the
+    demonstration's own, where that gives no plan either."""
+    robot_recon, note = robot_reconstruction(recon, placement=where, swung_in=True, **sizes)
+    try:
+        return _plan_anywhere(robot_recon, placement, auto), note
+    except PlanError:
+        raise error from None
+
+
+def _plan_anywhere(recon: Reconstruction, placement: Placement | str | None, auto: bool) -> RobotPlan:
+    """The plan of the robot's reconstruction from the best base placement that gives one (``auto``: the
+    ranked search, else ``placement``); raises the first placement's PlanError where none does."""
     task = _task(recon)
     if auto:
         scene0 = make_scene(recon)
@@ -150,16 +182,13 @@ def retarget(recon: Reconstruction | Skill, *, layout: Layout | None = None, pla
         plan.static_pos = recon.static_pos.copy()
         plan.static_size = recon.static_size.copy()
         plan.static_rot = recon.static_rot.copy()
-        plan.note = note
-        plan.layout = layout
-        plan.planning_time = time.perf_counter() - started
         return plan
     raise errors[0]
 
 
 def robot_reconstruction(recon: Reconstruction, *, placement: Placement = Placement(), object_size=None,
-                         static_sizes=None, keep_size: bool = False,
-                         onset: int | None = None) -> tuple[Reconstruction, str]:
+                         static_sizes=None, keep_size: bool = False, onset: int | None = None,
+                         swung_in: bool = False) -> tuple[Reconstruction, str]:
     """The reconstruction as the robot performs it, and :func:`~warpskill.robot.sizes.fit_sizes`' note.
 
     The cuboids get the robot's sizes (:func:`~warpskill.robot.sizes.fit_sizes`). An object
@@ -188,12 +217,14 @@ def robot_reconstruction(recon: Reconstruction, *, placement: Placement = Placem
         object_size, static_sizes, keep_size: as for :func:`retarget`.
         onset: the held frame at which the robot takes an object held from the first frame
             (None: the first one it can, as above).
+        swung_in: take the object over as one held from the first frame, though it is not
+            (:func:`retarget` does, where the demonstration as it is gives no plan).
 
     Raises:
         ValueError: sizes of the wrong shape or count.
     """
     fitted, note = fit_sizes(recon, object_size=object_size, static_sizes=static_sizes, keep_size=keep_size)
-    if not fitted.grasped[0] > 0.5:
+    if not (fitted.grasped[0] > 0.5 or swung_in):
         return clear_path(fitted), note
     held = np.flatnonzero(fitted.grasped > 0.5)
     taken_at = lambda k: clear_path(rest_until(fitted, int(k)))  # noqa: E731
