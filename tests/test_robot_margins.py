@@ -11,7 +11,7 @@ from robot_support import require_robot
 
 robot = require_robot("placo", "mujoco")
 from warpskill.contract import LayoutError, Reconstruction, skill_from  # noqa: E402
-from warpskill.contract.geometry import cuboid_corners  # noqa: E402
+from warpskill.geometry import cuboid_corners  # noqa: E402
 from warpskill.contract.skill import SWING_SPEED  # noqa: E402
 from warpskill.export.layouts import sample_layouts  # noqa: E402
 from warpskill.robot.model import make_scene  # noqa: E402

@@ -144,7 +144,7 @@ def test_cli_object_size_and_keep_size(tmp_path, capsys):
 
 @pytest.mark.parametrize("degrees", [20.0, 5.0])  # a clear tilt, and one that stood a tall pillar on its edge
 def test_a_tilted_cuboid_rests_on_a_face(degrees):
-    from warpskill.contract.geometry import cuboid_corners
+    from warpskill.geometry import cuboid_corners
     from warpskill.robot import fit_sizes
 
     recon = truth("push_right_to_left", 0)

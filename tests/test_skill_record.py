@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from warpskill.contract import Layout, LayoutError, Reconstruction, Skill, SkillError, evaluate, skill_from
-from warpskill.contract.skill import GRAZE, heading, overlap_depth
+from warpskill.contract.skill import GRAZE, overlap_depth
+from warpskill.geometry import heading
 from warpskill.synthetic import make_demonstration
 
 MOTION_KEYS = ("object_pos", "object_rot", "hand_pos", "hand_rot", "static_pos", "static_rot")

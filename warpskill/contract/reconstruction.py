@@ -14,8 +14,8 @@ from collections.abc import Mapping
 import numpy as np
 
 from warpskill.contract.actions import check_action
-from warpskill.contract.geometry import cuboid_corners
 from warpskill.contract.npz import read_npz, save_npz_atomic
+from warpskill.geometry import cuboid_corners
 
 FIELD_SHAPES: dict[str, tuple[str | int, ...]] = {
     "fps": (),

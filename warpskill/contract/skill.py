@@ -45,8 +45,9 @@ from warpskill.contract.actions import check_action
 from warpskill.contract.npz import read_npz, save_npz_atomic
 from warpskill.contract.reconstruction import FIELD_SHAPES as RECONSTRUCTION_SHAPES
 from warpskill.contract.reconstruction import Reconstruction, SceneCounts
+from warpskill.geometry import NEVER_HELD, heading, held_span, is_held, rot_z, support_extent
 
-__all__ = ["ONTO_INSET", "SWING_SPEED", "TAKEOVER_SPEED", "Layout", "LayoutError", "Skill", "SkillError", "heading",
+__all__ = ["ONTO_INSET", "SWING_SPEED", "TAKEOVER_SPEED", "Layout", "LayoutError", "Skill", "SkillError",
            "overlap_depth", "skill_from"]
 
 OVERLAP_TOLERANCE = 0.01
@@ -63,9 +64,6 @@ LIFT_RATE = 0.2
 
 MIN_TRAVEL = 0.01
 """[m] a pull or push moving the object less than this has no world direction to keep."""
-
-HELD = 0.5
-"""``grasped`` above this: the hand holds (or touches) the object."""
 
 ONTO_INSET = 0.03
 """[m] a put onto lets go with the object's centre at least this far inside the edges of the static
@@ -115,21 +113,6 @@ class LayoutError(ValueError):
     """A layout the skill cannot be carried to; the one-line message says why."""
 
 
-def _rot_z(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def heading(rot: np.ndarray) -> float:
-    """Yaw [rad] of a cuboid of rotation ``rot`` (3, 3): the heading of its local x about z.
-
-    Where local x is near vertical (the cuboid on its side), local y's heading less pi/2.
-    """
-    if math.hypot(rot[0, 0], rot[1, 0]) >= 0.5:
-        return math.atan2(rot[1, 0], rot[0, 0])
-    return math.atan2(rot[1, 1], rot[0, 1]) - math.pi / 2
-
-
 def _pose(value, what: str) -> tuple[float, float, float]:
     array = np.asarray(value, dtype=float)
     if array.shape != (3,) or not np.all(np.isfinite(array)):
@@ -143,7 +126,7 @@ class Layout:
 
     Attributes:
         object: (x [m], y [m], yaw [rad]) of the object's start in the reconstruction's world
-            frame; yaw is the heading of the cuboid's local x (:func:`heading`).
+            frame; yaw is the heading of the cuboid's local x (:func:`~warpskill.geometry.heading`).
         statics: one (x, y, yaw) per static box, in the reconstruction's order.
         object_size: (3,) [m] the object's edge lengths; None keeps the demonstrated size.
 
@@ -192,11 +175,6 @@ class Layout:
         return f"object at {text(self.object)}, static boxes at {statics}"
 
 
-def _support_extent(rot: np.ndarray, size: np.ndarray, direction: np.ndarray) -> float:
-    """Half the extent [m] of a cuboid (rotation ``rot``, edge lengths ``size``) along ``direction`` (unit)."""
-    return 0.5 * float(np.abs(rot.T @ direction) @ size)
-
-
 def _on_top_floor(pos: np.ndarray, rot: np.ndarray, size: np.ndarray, static_pos: np.ndarray,
                   static_rot: np.ndarray, static_size: np.ndarray) -> np.ndarray:
     """(F,) [m] the lowest centre height of an object (centres ``pos`` (F, 3), rotations ``rot``
@@ -210,8 +188,8 @@ def _on_top_floor(pos: np.ndarray, rot: np.ndarray, size: np.ndarray, static_pos
     up = np.array([0.0, 0.0, 1.0])
     local = (pos - static_pos) @ static_rot
     over = np.all(np.abs(local[:, :2]) <= 0.5 * static_size[:2], axis=1)
-    top = static_pos[2] + _support_extent(static_rot, static_size, up)
-    floor = top - GRAZE + np.array([_support_extent(r, size, up) for r in rot])
+    top = static_pos[2] + support_extent(static_rot, static_size, up)
+    floor = top - GRAZE + np.array([support_extent(r, size, up) for r in rot])
     return np.where(over, floor, -np.inf)
 
 
@@ -227,7 +205,7 @@ def overlap_depth(pos_a, rot_a, size_a, pos_b, rot_b, size_b) -> float:
         if norm < 1e-9:
             continue
         axis = axis / norm
-        reach = _support_extent(rot_a, size_a, axis) + _support_extent(rot_b, size_b, axis)
+        reach = support_extent(rot_a, size_a, axis) + support_extent(rot_b, size_b, axis)
         depth = min(depth, reach - abs(float(gap @ axis)))
         if depth <= 0.0:
             return 0.0
@@ -296,8 +274,8 @@ class Skill(SceneCounts):
         if not self._carried_in():
             return 0
         speed = np.linalg.norm(np.diff(self.object_motion_pos, axis=0), axis=1) * self.fps  # (N - 1,)
-        held = np.flatnonzero(self.grasped > HELD)
-        last = int(held[-1]) if held[-1] + 1 < len(self.grasped) else len(self.grasped) - 1
+        _, k_off = held_span(self.grasped)
+        last = self.num_frames - 1 if k_off is None else k_off - 1
         fast = np.flatnonzero(speed[:last] > SWING_SPEED)
         if len(fast) == 0:
             return 0
@@ -309,7 +287,7 @@ class Skill(SceneCounts):
     def _carried_in(self) -> bool:
         """Whether the object is held from the first frame and moves at once (carried into view;
         a skill carried to a layout waits still at its start instead)."""
-        return bool(self.grasped[0] > HELD and self.num_frames > 1
+        return bool(is_held(self.grasped[0]) and self.num_frames > 1
                     and np.any(self.object_motion_pos[1] != self.object_motion_pos[0]))
 
     def _motion(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -329,7 +307,7 @@ class Skill(SceneCounts):
         start_rot = _on_a_face(self.object_motion_rot[k] @ self.object_start_rot, self.object_size,
                                largest=not _world_directed(self.action))
         start_pos = self.object_start_pos + self.object_motion_pos[k]
-        drop = start_pos[2] - _support_extent(start_rot, self.object_size, np.array([0.0, 0.0, 1.0]))
+        drop = start_pos[2] - support_extent(start_rot, self.object_size, np.array([0.0, 0.0, 1.0]))
         start_pos = start_pos - np.array([0.0, 0.0, drop])
         _, k_off = self.frames()
         end = (self.num_frames - 1) if k_off is None else k_off
@@ -398,7 +376,7 @@ class Skill(SceneCounts):
         rot = self.static_rot.copy()
         for k, (x, y, yaw) in enumerate(layout.statics):
             pos[k, :2] = x, y
-            rot[k] = _rot_z(yaw - heading(self.static_rot[k])) @ self.static_rot[k]
+            rot[k] = rot_z(yaw - heading(self.static_rot[k])) @ self.static_rot[k]
         return pos, rot
 
     def _object_path(self, layout: Layout, size: np.ndarray, static_pos: np.ndarray,
@@ -414,11 +392,11 @@ class Skill(SceneCounts):
         """
         x, y, yaw = layout.object
         demo_pos, demo_rot, motion_pos, motion_rot = self._motion()
-        start_rot = _rot_z(yaw - heading(demo_rot)) @ demo_rot
+        start_rot = rot_z(yaw - heading(demo_rot)) @ demo_rot
         rot = motion_rot @ start_rot
         start = np.array([x, y, demo_pos[2]])
         up = np.array([0.0, 0.0, 1.0])
-        start[2] += _support_extent(start_rot, size, up) - _support_extent(demo_rot, self.object_size, up)
+        start[2] += support_extent(start_rot, size, up) - support_extent(demo_rot, self.object_size, up)
         pos = start + motion_pos
         k_on, k_off = self.frames()
         if self.action.startswith("put_") and k_off is not None and self.num_static:
@@ -444,8 +422,8 @@ class Skill(SceneCounts):
         else:  # beside the box: the gap between the world extents is kept
             axis = int(np.argmax(np.abs(offset[:2])))
             direction = np.eye(3)[axis]
-            reach = (_support_extent(static_rot, self.static_size[0], direction)
-                     + _support_extent(rot, size, direction))
+            reach = (support_extent(static_rot, self.static_size[0], direction)
+                     + support_extent(rot, size, direction))
             offset[axis] = math.copysign(reach + max(self.release_gap, 0.0), offset[axis])
         target = static_pos + offset
         target[2] = where[2]
@@ -466,8 +444,8 @@ class Skill(SceneCounts):
             demo_rot = motion_rot[ref] @ start_rot
             for k in range(self.num_frames):
                 side = math.copysign(1.0, float(offset[k] @ direction))
-                moved = (_support_extent(ref_rot[k], size, direction)
-                         - _support_extent(demo_rot[k], self.object_size, direction))
+                moved = (support_extent(ref_rot[k], size, direction)
+                         - support_extent(demo_rot[k], self.object_size, direction))
                 offset[k] += side * moved * direction
         return ref_pos + offset, self.hand_in_object_rot.copy()
 
@@ -523,15 +501,6 @@ def _world_directed(action: str) -> bool:
     return action.startswith(("pull_", "push_"))
 
 
-def _held_span(grasped: np.ndarray) -> tuple[int, int | None]:
-    """The first held frame and the frame after the last held one (None: held to the end)."""
-    held = np.flatnonzero(grasped > HELD)
-    if len(held) == 0:
-        raise SkillError("grasped: the hand never holds or touches the object (grasped <= 0.5 in every frame)")
-    k_off = int(held[-1]) + 1
-    return int(held[0]), k_off if k_off < len(grasped) else None
-
-
 def _reference_frames(grasped: np.ndarray, k_on: int, k_off: int | None) -> np.ndarray:
     """(N,) the object frame each hand sample is relative to: the onset before it, the release after it."""
     ref = np.arange(len(grasped))
@@ -575,8 +544,8 @@ def _carry_lift(pos: np.ndarray, rot: np.ndarray, size: np.ndarray, statics: tup
     for f in range(k_on, end):
         for static in zip(*statics):
             if overlap_depth(pos[f], rot[f], size, *static) > GRAZE:
-                top = static[0][2] + _support_extent(static[1], static[2], up)
-                need[f] = max(need[f], top + CARRY_CLEARANCE - (pos[f, 2] - _support_extent(rot[f], size, up)))
+                top = static[0][2] + support_extent(static[1], static[2], up)
+                need[f] = max(need[f], top + CARRY_CLEARANCE - (pos[f, 2] - support_extent(rot[f], size, up)))
     if not need.any():
         return need
     frames = np.arange(len(pos))
@@ -611,7 +580,10 @@ def skill_from(recon: Reconstruction) -> Skill:
     if not str(recon.action):
         raise SkillError("action: the reconstruction's action is unknown; a skill needs one")
     action = check_action(str(recon.action))
-    k_on, k_off = _held_span(recon.grasped)
+    span = held_span(recon.grasped)
+    if span is None:
+        raise SkillError(f"grasped: {NEVER_HELD}")
+    k_on, k_off = span
     ref = _reference_frames(recon.grasped, k_on, k_off)
     start_pos, start_rot = recon.object_pos[0], recon.object_rot[0]
     ref_pos, ref_rot = recon.object_pos[ref], recon.object_rot[ref]
@@ -624,8 +596,8 @@ def skill_from(recon: Reconstruction) -> Skill:
     if action.startswith("put_") and recon.num_static and k_off is not None:
         offset = recon.object_pos[k_off] - recon.static_pos[0]
         axis = np.eye(3)[int(np.argmax(np.abs(offset[:2])))]
-        gap = abs(float(offset @ axis)) - (_support_extent(recon.static_rot[0], recon.static_size[0], axis)
-                                           + _support_extent(recon.object_rot[k_off], recon.object_size, axis))
+        gap = abs(float(offset @ axis)) - (support_extent(recon.static_rot[0], recon.static_size[0], axis)
+                                           + support_extent(recon.object_rot[k_off], recon.object_size, axis))
     fps = float(recon.fps)
     return Skill(
         action=action, fps=fps, t=recon.t.copy(), grasp=recon.grasp.copy(), grasped=recon.grasped.copy(),

@@ -34,7 +34,8 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from warpskill.contract.skill import HELD, SWING_SPEED, Layout, LayoutError, Skill, overlap_depth
+from warpskill.contract.skill import SWING_SPEED, Layout, LayoutError, Skill, overlap_depth
+from warpskill.geometry import is_held
 from warpskill.robot.model import make_scene
 from warpskill.robot.placement import check_reach
 
@@ -153,7 +154,7 @@ def _refusal(skill: Skill, layout: Layout, table: ReachableTable) -> str:
     if not (all(table.clear_of_base(*box) for box in boxes)
             and all(table.clear_of_base(pos, rot, recon.object_size) for pos, rot in path)):
         return "too near the robot's base"
-    if recon.grasped[0] > HELD and recon.object_corners()[0, :, 2].min() > START_HEIGHT:
+    if is_held(recon.grasped[0]) and recon.object_corners()[0, :, 2].min() > START_HEIGHT:
         return "carried-in object starts lifted"  # over a box beside its start
     if np.max(np.linalg.norm(np.diff(recon.object_pos, axis=0), axis=1)) * float(recon.fps) > SWING_SPEED:
         return "path swings too fast"  # the put's path bent so far towards the box

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from warpskill.contract.reconstruction import Reconstruction
+from warpskill.geometry import rot_z
 from warpskill.robot.scene_config import load_scene_config
 
 ARM_JOINTS: tuple[str, ...] = tuple(f"panda_joint{i}" for i in range(1, 8))
@@ -38,9 +39,6 @@ MAX_OPENING = 0.08
 
 FINGER_SPEED = 0.2
 """Largest speed [m/s] of each finger (the URDF's limit)."""
-
-TABLE_SIZE = np.array(load_scene_config().table.size)
-"""Edge lengths [m] of the table box (``table.size`` of ``assets/robot_scene.toml``); its top is the world plane z = 0."""
 
 _PACKAGE_PREFIX = "package://example-robot-data/robots/"
 
@@ -123,8 +121,7 @@ def make_scene(recon: Reconstruction, placement: Placement | None = None, *, bas
     xy = np.concatenate(points, 0)
     centre = 0.5 * (xy.min(0) + xy.max(0))
     if base is None:
-        c, s = math.cos(placement.yaw), math.sin(placement.yaw)
-        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        rot = rot_z(placement.yaw)
         base = np.eye(4)
         base[:3, :3] = rot
         base[:2, 3] = centre - rot[:2, :2] @ np.asarray(placement.offset, float)

@@ -29,7 +29,8 @@ import math
 import numpy as np
 
 from warpskill.contract.reconstruction import Reconstruction
-from warpskill.contract.skill import HELD, LayoutError
+from warpskill.contract.skill import LayoutError
+from warpskill.geometry import held_span, release_frame
 from warpskill.robot.model import Placement, make_scene
 from warpskill.robot.planner import COLLISION_MARGIN, Planner
 
@@ -133,11 +134,8 @@ def path_wrists(recon: Reconstruction) -> tuple[np.ndarray, np.ndarray]:
     (or the end), and the wrist point (F, 3) of a top grasp in each: :data:`WRIST` above the
     object's centre (the grasp pose is not chosen yet: the cheap, pose-free version of the path
     the placement search scores)."""
-    held = np.flatnonzero(recon.grasped > HELD)
-    if len(held) == 0:
-        frames = np.arange(recon.num_frames)
-    else:
-        frames = np.arange(int(held[0]), min(int(held[-1]) + 1, recon.num_frames - 1) + 1)
+    span = held_span(recon.grasped)
+    frames = np.arange(recon.num_frames) if span is None else np.arange(span[0], release_frame(recon.grasped) + 1)
     return frames, recon.object_pos[frames] + np.array([0.0, 0.0, WRIST])
 
 

@@ -45,6 +45,7 @@ import numpy as np
 
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.skill import SWING_SPEED, Layout, Skill, skill_from
+from warpskill.geometry import NEVER_HELD, held_span, is_held
 from warpskill.robot.grasps import FIT_MARGIN, GraspPose, candidate_poses, rank_poses
 from warpskill.robot.model import HOME_Q, MAX_OPENING, Placement, Scene, make_scene
 from warpskill.robot.placement import WRIST, check_reach, rank_placements, reach_excess
@@ -224,9 +225,9 @@ def robot_reconstruction(recon: Reconstruction, *, placement: Placement = Placem
         ValueError: sizes of the wrong shape or count.
     """
     fitted, note = fit_sizes(recon, object_size=object_size, static_sizes=static_sizes, keep_size=keep_size)
-    if not (fitted.grasped[0] > 0.5 or swung_in):
+    if not (is_held(fitted.grasped[0]) or swung_in):
         return clear_path(fitted), note
-    held = np.flatnonzero(fitted.grasped > 0.5)
+    held = np.flatnonzero(is_held(fitted.grasped))
     taken_at = lambda k: clear_path(rest_until(fitted, int(k)))  # noqa: E731
     if onset == 0:  # a layout's: the object rests at its start already; the path is the layout's
         return clear_path(fitted), note
@@ -284,11 +285,10 @@ def _grasp_ik(planner: Planner, T_on: np.ndarray, pose: GraspPose) -> tuple[np.n
 def _task(recon: Reconstruction) -> dict:
     """The contact onset and end, and the grasp poses ranked by (angle + penalties) against the demonstration."""
     action = str(recon.action)
-    held = np.flatnonzero(recon.grasped > 0.5)
-    if len(held) == 0:
-        raise PlanError("frame -: the hand never grasps or touches the object (grasped <= 0.5 in every frame)")
-    k_on = int(held[0])
-    k_off = int(held[-1]) + 1 if held[-1] + 1 < recon.num_frames else None
+    span = held_span(recon.grasped)
+    if span is None:
+        raise PlanError(f"frame -: {NEVER_HELD}")
+    k_on, k_off = span
     if action == "pick_up":
         k_off = None  # a picked-up object ends in the hand: a release in the last frames is not followed
     pushing = action.startswith("push_")

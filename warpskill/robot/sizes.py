@@ -31,6 +31,7 @@ import math
 import numpy as np
 
 from warpskill.contract.reconstruction import Reconstruction
+from warpskill.geometry import held_span, is_held, release_frame
 from warpskill.robot.grasps import FIT_MARGIN
 from warpskill.robot.model import MAX_OPENING
 
@@ -103,11 +104,10 @@ def rest_until(recon: Reconstruction, k: int) -> Reconstruction:
 
     Args:
         recon: a reconstruction with the robot's sizes (:func:`fit_sizes`) whose object is
-            held (``grasped > 0.5``) in frames 0 and ``k``.
+            held (:func:`~warpskill.geometry.is_held`) in frames 0 and ``k``.
         k: the grasp onset, a frame of the grasped span.
     """
-    held = np.flatnonzero(recon.grasped > 0.5)
-    end = _release(recon, held)
+    end = release_frame(recon.grasped)
     R = upright(recon.object_rot[k: k + 1], up=resting_axis(recon))[0]
     half = 0.5 * float(np.abs(R[2]) @ recon.object_size)  # [m] vertical half extent
     floor = _support(recon.object_pos[:, :2], 0.5 * min(recon.object_size[:2]), recon.static_pos,
@@ -143,10 +143,10 @@ def clear_path(recon: Reconstruction) -> Reconstruction:
     leaves a static box's top, the path would otherwise step down within a frame, which no
     slow-down of the replay makes trackable). The hand rises with the object it holds.
     """
-    held = np.flatnonzero(recon.grasped > 0.5)
-    if len(held) == 0:
+    held = held_span(recon.grasped)
+    if held is None:
         return recon
-    span = slice(int(held[0]), _release(recon, held) + 1)
+    span = slice(held[0], release_frame(recon.grasped) + 1)
     floor = _support(recon.object_pos[span, :2], 0.5 * min(recon.object_size[:2]), recon.static_pos,
                      recon.static_rot, recon.static_size)
     half = 0.5 * np.abs(recon.object_rot[span, 2, :]) @ recon.object_size
@@ -163,14 +163,9 @@ def clear_path(recon: Reconstruction) -> Reconstruction:
     return dataclasses.replace(recon, object_pos=object_pos, hand_pos=hand_pos)
 
 
-def _release(recon: Reconstruction, held: np.ndarray) -> int:
-    """The release frame: the one after the last ``held`` frame (the last frame where the video ends held)."""
-    return min(int(held[-1]) + 1, recon.num_frames - 1)
-
-
 def _onset(recon: Reconstruction) -> int:
-    held = np.flatnonzero(recon.grasped > 0.5)
-    return int(held[0]) if len(held) else 0
+    span = held_span(recon.grasped)
+    return 0 if span is None else span[0]
 
 
 def _still_until_onset(recon: Reconstruction) -> Reconstruction:
@@ -196,7 +191,7 @@ def resting_axis(recon: Reconstruction) -> int:
     (a carried object's reconstructed tilt is unreliable).
     """
     nearest = np.argmax(np.abs(recon.object_rot[:, 2, :]), axis=1)  # (F,)
-    if recon.grasped[0] > 0.5:
+    if is_held(recon.grasped[0]):
         return int(np.argmax(np.bincount(nearest, minlength=3)))
     return int(nearest[_onset(recon)])
 
@@ -257,9 +252,9 @@ def fit_sizes(recon: Reconstruction, *, object_size=None, static_sizes=None,
     s_old = _support(xy, 0.5 * min(recon.object_size[:2]), recon.static_pos, recon.static_rot, recon.static_size)
     s_new = _support(xy, 0.5 * min(size[:2]), static_pos, recon.static_rot, statics)
     ds = s_new - s_old
-    held = np.flatnonzero(recon.grasped > 0.5)
-    if len(held):
-        a, b = int(held[0]), _release(recon, held)
+    span = held_span(recon.grasped)
+    if span is not None:
+        a, b = span[0], release_frame(recon.grasped)
         if b > a:
             ds[a:b + 1] = np.interp(np.arange(a, b + 1), [a, b], [ds[a], ds[b]])
     object_pos = recon.object_pos.copy()

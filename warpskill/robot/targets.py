@@ -29,9 +29,9 @@ import math
 
 import numpy as np
 
-from warpskill.contract.geometry import cuboid_corners, min_jerk
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.skill import ONTO_INSET
+from warpskill.geometry import cuboid_corners, min_jerk
 from warpskill.robot.grasps import GraspPose
 from warpskill.robot.model import FINGER_SPEED, MAX_OPENING, Scene
 from warpskill.robot.plan import CLOSE_TIME, OPEN_TIME

@@ -17,6 +17,7 @@ from warpskill.data.masks import clean_masks
 from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.raycast import raycast_masks
 from warpskill.engine.simulation import simulate
+from warpskill.geometry import is_held
 from warpskill.synthetic.scripts import (
     TURNED_STATIC_YAW,
     Script,
@@ -172,7 +173,7 @@ def make_demonstration(
             return _annotated(visible_boxes(masks, noise, rng), contact, chosen, rng, fps, action, truth)
         hand, obj, static = box_channels(masks, noise, rng)
     else:
-        contact = noisy_contact(truth["grasped"] > 0.5, noise, rng)
+        contact = noisy_contact(is_held(truth["grasped"]), noise, rng)
         hand, obj, static = _cleaned(*noisy_channels(masks, noise, rng))
     return Demonstration.from_arrays(
         hand, obj, contact, fps, static_mask=static, camera_K=intrinsics.K, action=action, truth=truth

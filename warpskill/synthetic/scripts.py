@@ -8,9 +8,10 @@ import numpy as np
 import torch
 
 from warpskill.contract.actions import ACTIONS, check_action
-from warpskill.contract.geometry import frame_from_axis, min_jerk
+from warpskill.contract.geometry import frame_from_axis
 from warpskill.engine.records import SceneInputs
 from warpskill.engine.simulation import PhysicsConfig, substeps_per_frame
+from warpskill.geometry import min_jerk, rot_z
 
 GRASP_LEVEL = 0.02  # [m] |g| of the scripted grasp signal
 
@@ -217,11 +218,6 @@ def grasp_signal(script: Script, times: np.ndarray, ramp: float = 0.1) -> np.nda
     return GRASP_LEVEL * (2.0 * (up - down) - 1.0)
 
 
-def yaw_matrix(angle: float) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 def scripted_inputs(
     script: Script, fps: float, duration: float, dtype=torch.float64
 ) -> tuple[SceneInputs, dict[str, object]]:
@@ -244,7 +240,7 @@ def scripted_inputs(
         grasp0=t(grasp[:1])[0],
         hand_vel=t(velocity),
         object_pos0=t(script.object_pos),
-        object_rot0=t(yaw_matrix(script.object_yaw)),
+        object_rot0=t(rot_z(script.object_yaw)),
         object_size=t(script.object_size),
         static_pos=t(script.static_pos.reshape(K, 3)),
         static_rot=t(static_rotations(script)),
@@ -261,4 +257,4 @@ def scripted_scene(action: str, seed: int = 0, duration: float = 4.0) -> Script:
 
 def static_rotations(script: Script) -> np.ndarray:
     """(K, 3, 3) rotations of the scripted static cuboids (K may be 0)."""
-    return np.array([yaw_matrix(a) for a in script.static_yaw]).reshape(len(script.static_yaw), 3, 3)
+    return np.array([rot_z(a) for a in script.static_yaw]).reshape(len(script.static_yaw), 3, 3)

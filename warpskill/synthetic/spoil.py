@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 
 from warpskill.data.box_annotations import SomethingElseVideo, box_masks
+from warpskill.geometry import is_held
 from warpskill.synthetic.scripts import Script
 
 
@@ -77,7 +78,7 @@ def box_channels(masks: np.ndarray, noise: Noise, rng: np.random.Generator):
 def phase_contact(script: Script, truth: dict[str, np.ndarray], masks: np.ndarray) -> np.ndarray:
     """An annotator's action phase: from the grasp onset to the release, or to ``script.phase_end``
     (clipped to the object's last visible frame), as a per-frame contact signal."""
-    grasped = truth["grasped"] > 0.5
+    grasped = is_held(truth["grasped"])
     contact = grasped.copy()
     on = np.flatnonzero(grasped)
     if script.phase_end is not None and len(on):

@@ -12,6 +12,7 @@ from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.raycast import raycast_masks
+from warpskill.geometry import is_held
 from warpskill.media import HAND_COLOR, OBJECT_COLOR, STATIC_COLOR
 
 FILL_ALPHA = 0.5
@@ -157,7 +158,7 @@ def _annotate(frame: np.ndarray, recon: Reconstruction, k: int, contact: bool | 
     held = float(recon.grasped[k])
     lines = [
         (f"frame {k}/{recon.num_frames - 1}  t {recon.t[k]:.2f} s", (255, 255, 255)),
-        (f"g {recon.grasp[k]:+.3f}  grasped {held:.2f}", (255, 190, 120) if held > 0.5 else (255, 255, 255)),
+        (f"g {recon.grasp[k]:+.3f}  grasped {held:.2f}", (255, 190, 120) if is_held(held) else (255, 255, 255)),
     ]
     if contact is not None:
         lines.insert(1, ("contact: yes" if contact else "contact: no", (255, 230, 60) if contact else (200, 200, 200)))
