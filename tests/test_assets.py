@@ -39,14 +39,6 @@ def test_scene_config_loads_once_with_todays_values():
     assert config.video.lights and config.video.camera.distance > 0
 
 
-def test_the_former_constants_are_the_configs():
-    from warpskill.robot import model, video
-
-    config = load_scene_config()
-    np.testing.assert_array_equal(model.TABLE_SIZE, config.table.size)
-    assert video.VIDEO_FPS == config.video.fps
-
-
 def test_scene_config_rejects_missing_and_unknown_keys(tmp_path):
     text = assets.path("robot_scene.toml").read_text()
     bad = tmp_path / "scene.toml"
@@ -130,4 +122,3 @@ def test_newton_model_uses_the_scene_config():
     np.testing.assert_allclose(ke[driven], [*panda.arm_kp, panda.finger_kp, panda.finger_kp])
     np.testing.assert_allclose(kd[driven], [*panda.arm_kv, panda.finger_kv, panda.finger_kv], rtol=1e-6)
     np.testing.assert_allclose(effort[driven], [*panda.arm_torque_limit, panda.grip_force, panda.grip_force])
-    assert replay_newton.TIMESTEP == config.newton.timestep

@@ -103,7 +103,7 @@ def test_robot_step_agrees_across_engines_and_keeps_the_files(tmp_path):
 def test_robot_step_replays_a_successful_plan_under_every_perturbation():
     pytest.importorskip("mujoco")
     from warpskill.bench.end_to_end import robot_rows, robot_step
-    from warpskill.export.perturbation import PERTURBATIONS
+    from warpskill.robot.perturbation import PERTURBATIONS
 
     outcome = robot_step(truth("push_left_to_right", 2), engines=("mujoco",), robust=True)
     assert outcome.replayed

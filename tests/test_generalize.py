@@ -74,8 +74,8 @@ def test_perturbation_changes_the_simulated_mass_friction_and_start():
     from robot_support import require_robot
 
     require_robot("placo", "mujoco")
-    from warpskill.export.perturbation import Perturbation
     from warpskill.robot import replay_mujoco, retarget
+    from warpskill.robot.perturbation import Perturbation
 
     recon = truth("pick_up")
     plan = retarget(recon)

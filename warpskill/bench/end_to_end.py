@@ -24,8 +24,8 @@ import numpy as np
 
 from warpskill.contract.results_folder import ResultsFolder
 from warpskill.contract.skill import LayoutError
-from warpskill.export.perturbation import PERTURBATIONS
 from warpskill.robot import PlanError, prefer_headless_gl, record, replay, retarget
+from warpskill.robot.perturbation import PERTURBATIONS
 
 ENGINES: tuple[str, ...] = ("mujoco", "newton")
 
@@ -47,7 +47,7 @@ class RobotOutcome:
         cpu_seconds: engine -> CPU time [s] of this process during the replay (the replay's
             ``replay_time`` is wall-clock time, which other work on the machine stretches).
         perturbed: perturbation name -> whether the MuJoCo replay under it succeeded
-            (:data:`~warpskill.export.perturbation.PERTURBATIONS`); empty when not tried.
+            (:data:`~warpskill.robot.perturbation.PERTURBATIONS`); empty when not tried.
     """
 
     plan: object | None = None
@@ -145,7 +145,7 @@ def robot_step(recon, folder: Path | None = None, *, engines: Sequence[str] = EN
         device: Warp device of the Newton replay.
         video: also write the replay video into ``folder`` (MuJoCo's rendering of the plan).
         robust: where the plan succeeds in every engine, replay it in MuJoCo once more under
-            each of :data:`~warpskill.export.perturbation.PERTURBATIONS` (needs ``mujoco``
+            each of :data:`~warpskill.robot.perturbation.PERTURBATIONS` (needs ``mujoco``
             among ``engines``: the perturbations edit its model).
         skill, layout: plan ``skill`` in ``layout`` (:func:`warpskill.robot.retarget`)
             instead of ``recon`` as demonstrated.

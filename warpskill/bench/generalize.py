@@ -7,7 +7,7 @@ from the object, with the object's whole path on the table), each planned
 (:func:`warpskill.robot.retarget` with the layout) and replayed in every engine, judged by
 the action's criteria on the layout's scene (:func:`~warpskill.bench.end_to_end.robot_step`,
 as ``bench robot`` does). A plan that succeeds in every engine is replayed in MuJoCo once
-more under each of :data:`~warpskill.export.perturbation.PERTURBATIONS` (mass x0.5 and x2,
+more under each of :data:`~warpskill.robot.perturbation.PERTURBATIONS` (mass x0.5 and x2,
 friction -+30 %, the object 1 cm and 5 deg off); it is *robust* when it succeeds under all.
 
 Prints, per action, planned / succeeded (per engine) / robust as a success table, how the

@@ -81,7 +81,7 @@ def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, sourc
         video: also write ``OUT/<action>_<seed>/replay.mp4`` of each plan (MuJoCo; a plot
             without an offscreen renderer).
         robust: the ``robust`` row: a plan that succeeds in every engine is replayed in
-            MuJoCo under each of :data:`~warpskill.export.perturbation.PERTURBATIONS` (needs
+            MuJoCo under each of :data:`~warpskill.robot.perturbation.PERTURBATIONS` (needs
             ``mujoco`` among the engines).
 
     Returns:

@@ -68,7 +68,9 @@ def _mjcf(args) -> int:
             scene, base = plan.scene(recon), plan.base
     except LayoutError as error:
         return refused(error)
-    print(f"mjcf: {robot.write_mjcf(args.scene, scene, base)}")
+    from warpskill.export import write_mjcf
+
+    print(f"mjcf: {write_mjcf(args.scene, scene, base)}")
     return 0
 
 

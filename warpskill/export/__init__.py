@@ -1,9 +1,10 @@
-"""Robot data for other tools: rollouts of skills over random layouts, as a labelled LeRobot dataset.
+"""Robot data for other tools: the robot's scene as MJCF, rollouts of skills over random layouts as a
+labelled LeRobot dataset.
+
+- :mod:`~warpskill.export.mjcf`: the robot's scene as one MJCF file for the user's own MuJoCo;
 
 - :mod:`~warpskill.export.lerobot`: the LeRobot v3.0 dataset writer (pyarrow and PyAV only);
 - :mod:`~warpskill.export.layouts`: the distribution of layouts over the Panda's reachable table;
-- :mod:`~warpskill.export.perturbation`: what a real robot meets (object mass, friction, an
-  object off where it was expected), applied to the MuJoCo model of a replay;
 - :mod:`~warpskill.export.rollouts`: plan, replay and film a skill in a layout (MuJoCo offscreen),
   the cameras' calibration;
 - :mod:`~warpskill.export.dataset`: ``warpskill export lerobot``: the layouts each skill is given
@@ -15,7 +16,7 @@ and the benchmarks import it (``pyproject.toml``'s import contracts).
 
 from warpskill.lazy import lazy_exports
 
-_EXPORTS = {"export_lerobot": "dataset", "ExportError": "dataset", "ExportRequest": "dataset"}
+_EXPORTS = {"export_lerobot": "dataset", "ExportError": "dataset", "ExportRequest": "dataset", "write_mjcf": "mjcf"}
 
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())

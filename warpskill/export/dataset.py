@@ -53,7 +53,7 @@ __all__ = ["ATTEMPTS_PER_EPISODE", "EXPORT_VERSION", "PROVENANCE", "ExportError"
 ATTEMPTS_PER_EPISODE = 4  # layouts planned and replayed per wanted episode: a skill's budget
 EXPORT_VERSION = 2  # of what warpskill adds to the LeRobot format: labels, ee pose, calibration, provenance
 PROVENANCE = "meta/warpskill.json"  # where each skill came from (lerobot ignores the file)
-PERTURBATION = "none"  # the episodes' simulated world is the nominal one (warpskill.export.perturbation)
+PERTURBATION = "none"  # the episodes' simulated world is the nominal one (warpskill.robot.perturbation)
 SHEET_EPISODES = 4  # episodes on the contact sheet (rows) ...
 SHEET_FRAMES = 6  # ... and frames of each (columns)
 

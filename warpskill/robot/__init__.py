@@ -6,9 +6,9 @@ never on the optimiser's or the engine's internals) and the media leaf
 (:mod:`warpskill.media`: video writers, the palette), never :mod:`warpskill.visual`; placo, MuJoCo and Newton are optional (extra ``robot``) and imported on first use.
 
 - :func:`retarget`: reconstruction -> :class:`RobotPlan` (placo differential IK).
-- :func:`write_mjcf`: the robot's scene as one MJCF file for the user's own MuJoCo.
 - :func:`replay`: simulate a plan in MuJoCo or Newton -> :class:`Replay` (the simulated
-  object and gripper as a reconstruction, and whether the action succeeded).
+  object and gripper as a reconstruction, and whether the action succeeded); the perturbations
+  a plan is robust to (:mod:`~warpskill.robot.perturbation`), applied to the MuJoCo model of a replay.
 
 Needs the optional packages ``placo``, ``mujoco``, ``example-robot-data`` (and ``newton``
 for that engine); they are imported on first use.
@@ -27,7 +27,6 @@ _EXPORTS = {
     "make_scene": "model",
     "rank_placements": "placement",
     "check_reach": "placement",
-    "write_mjcf": "mjcf",
     "fit_sizes": "sizes",
     "replay": "replaying",
     "Replay": "replaying",

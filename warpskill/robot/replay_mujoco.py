@@ -2,9 +2,9 @@
 
 The arm joints track the plan's joint positions (interpolated linearly at every physics
 step) with stiff position actuators and gravity compensation; each finger has a position
-actuator whose force is capped at :data:`GRIP_FORCE`, so a closed command squeezes the
-object. The manipulated cuboid is a free body with :data:`OBJECT_MASS` and
-:data:`FRICTION`; the table and static cuboids are fixed boxes. Every value (and the
+actuator whose force is capped (``panda.grip_force``), so a closed command squeezes the
+object. The manipulated cuboid is a free body (:data:`OBJECT_BODY`) of ``object.mass`` and
+``contact.friction``; the table and static cuboids are fixed boxes. Every value (and the
 video's lights and colours, which change no physics) comes from the scene description
 ``assets/robot_scene.toml`` (:func:`~warpskill.robot.scene_config.load_scene_config`).
 """
@@ -25,15 +25,11 @@ from warpskill.robot.model import (
 from warpskill.robot.plan import RobotPlan
 from warpskill.robot.scene_config import load_scene_config
 
-# The scene description's values under their former names (read-only aliases).
-_CONFIG = load_scene_config()
-TIMESTEP = _CONFIG.mujoco.timestep  # [s]
-OBJECT_MASS = _CONFIG.object.mass  # [kg]
-FRICTION = _CONFIG.contact.friction  # sliding friction coefficient of every contact
-GRIP_FORCE = _CONFIG.panda.grip_force  # [N] per finger
-ARM_KP = np.array(_CONFIG.panda.arm_kp)  # [N m / rad]
-ARM_KV = _CONFIG.panda.arm_kv  # [N m s / rad]
-FINGER_KP = _CONFIG.panda.finger_kp  # [N / m]
+OBJECT_BODY = "object"
+"""Name of the manipulated cuboid's body (and of its box geom) in the model."""
+
+OBJECT_JOINT = "object_free"
+"""Name of the manipulated cuboid's free joint in the model."""
 
 
 def _quat(R: np.ndarray) -> np.ndarray:
@@ -92,9 +88,9 @@ def build_spec(recon: Reconstruction, base_pose: np.ndarray):
         world.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=size / 2, pos=T[:3, 3], quat=_quat(T[:3, :3]),
                        friction=contact.mujoco_friction, condim=contact.condim, contype=1, conaffinity=3,
                        rgba=config.table.rgba if name == "table" else config.static.rgba)
-    obj = world.add_body(name="object", pos=recon.object_pos[0], quat=_quat(recon.object_rot[0]))
-    obj.add_freejoint(name="object_free")
-    obj.add_geom(name="object", type=mujoco.mjtGeom.mjGEOM_BOX, size=recon.object_size / 2, mass=config.object.mass,
+    obj = world.add_body(name=OBJECT_BODY, pos=recon.object_pos[0], quat=_quat(recon.object_rot[0]))
+    obj.add_freejoint(name=OBJECT_JOINT)
+    obj.add_geom(name=OBJECT_BODY, type=mujoco.mjtGeom.mjGEOM_BOX, size=recon.object_size / 2, mass=config.object.mass,
                  friction=contact.mujoco_friction, condim=contact.condim, contype=1, conaffinity=3,
                  rgba=config.object.rgba)
     spec.add_exclude(bodyname1="panda_link0", bodyname2="world")
@@ -169,8 +165,8 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, video
     data.qpos[finger_qpos] = plan.gripper[0] / 2
     mujoco.mj_forward(model, data)
     tcp_body = model.body(TCP_FRAME).id
-    obj_body = model.body("object").id
-    obj_geom = model.geom("object").id
+    obj_body = model.body(OBJECT_BODY).id
+    obj_geom = model.geom(OBJECT_BODY).id
     finger_bodies = {model.body("panda_leftfinger").id, model.body("panda_rightfinger").id}
     timestep = model.opt.timestep
     steps = int(np.ceil(times[-1] / timestep)) + 1

@@ -3,21 +3,20 @@
 The scene is the one of :mod:`warpskill.robot.replay_mujoco`: the Panda URDF of
 ``example-robot-data`` (its collision meshes, loaded by Newton's URDF importer, which needs
 ``trimesh``), the table and static cuboids as fixed boxes, the manipulated cuboid as a free
-body of :data:`~warpskill.robot.replay_mujoco.OBJECT_MASS`, every contact with
-:data:`~warpskill.robot.replay_mujoco.FRICTION`. Newton's own collision pipeline makes the
+body of ``object.mass``, every contact with ``contact.friction`` (``assets/robot_scene.toml``). Newton's own collision pipeline makes the
 contacts, so the check does not reuse MuJoCo.
 
 The robot is a dynamic articulation under position control, as in MuJoCo: every arm joint
 has a PD drive towards the plan's joint position (interpolated linearly at every physics
-step) with MuJoCo's gains (:data:`~warpskill.robot.replay_mujoco.ARM_KP`, ``ARM_KV``) and
-torque limits (:data:`ARM_EFFORT`), armature and joint damping, and the links carry
+step) with MuJoCo's gains (``panda.arm_kp``, ``panda.arm_kv``) and
+torque limits (``panda.arm_torque_limit``), armature and joint damping, and the links carry
 gravity compensation (a constant upward force ``m g`` at each link's centre of mass). Each
 finger is an independent prismatic joint (the URDF's mimic tag is dropped, as MuJoCo's
 importer ignores it) with a PD drive towards half the planned opening whose force is capped
-at :data:`~warpskill.robot.replay_mujoco.GRIP_FORCE`: a closed command squeezes the cuboid
+at ``panda.grip_force``: a closed command squeezes the cuboid
 and the finger stops at it. The cuboid moves only through contacts with the simulated
 fingers and hand. The drives track the plan the way MuJoCo's do (a lag of about
-``ARM_KV / ARM_KP`` times the joint speed: 0.05 to 0.2 rad at the fastest moves of the
+``arm_kv / arm_kp`` times the joint speed: 0.05 to 0.2 rad at the fastest moves of the
 synthetic plans, Newton's joints within 0.005 rad of MuJoCo's unless the hand jams against
 the cuboid or the table), so the replayed joints follow the plan closely but not exactly.
 
@@ -25,7 +24,7 @@ Solver: :class:`newton.solvers.SolverSteel` (experimental in Newton 1.8): reduce
 articulated dynamics whose drives are integrated implicitly in the mass matrix, with
 contacts, friction and joint limits solved by projected Gauss-Seidel; its persistent
 friction patches hold a squeezed cuboid without creep. It runs at MuJoCo's
-:data:`TIMESTEP` on Warp's CPU device (and, untested here, on CUDA). Newton 1.8's other
+timestep (``newton.timestep``) on Warp's CPU device (and, untested here, on CUDA). Newton 1.8's other
 options were found to fail on CPU for this scene: ``SolverXPBD``'s revolute drives diverged
 on this arm and its friction let the cuboid slip between drive-pushed fingers,
 ``SolverFeatherstone``'s explicit drives with penalty contacts blew up when the gripper
@@ -74,18 +73,6 @@ from warpskill.warp_log import configure_warp_log
 
 configure_warp_log()  # before Newton builds anything: no "Module ... load on device" lines unless asked for
 
-# The scene description's values under their former names (read-only aliases).
-_CONFIG = load_scene_config()
-TIMESTEP = _CONFIG.newton.timestep  # [s], as MuJoCo's
-ITERATIONS = _CONFIG.newton.iterations  # projected Gauss-Seidel iterations per step
-CONTACT_GAP = _CONFIG.newton.contact_gap  # [m] distance at which contacts are detected
-ROW_CAPACITY = _CONFIG.newton.row_capacity  # constraint rows of the robot per step (its contacts, joint limits)
-LIMIT_GAP = _CONFIG.newton.limit_gap  # [rad or m] a joint limit's row is created this close to it
-ARM_EFFORT = np.array(_CONFIG.panda.arm_torque_limit)  # [N m] torque limits of the arm drives
-ARM_ARMATURE = _CONFIG.panda.arm_armature  # [kg m^2]
-ARM_DAMPING = _CONFIG.panda.arm_damping  # [N m s / rad]
-FINGER_KV = _CONFIG.panda.finger_kv  # [N s / m]
-FINGER_DAMPING = _CONFIG.panda.finger_damping  # [N s / m]
 # Links standing on (or just above) the table: their contacts with the environment are not simulated
 # (panda_link0 is merged into the world when the fixed joints are collapsed).
 _BASE_LINKS = ("panda_link0", "panda_link1")

@@ -81,7 +81,6 @@ class _Recorder:
         self.frames.append(self.renderer.render().copy())
 
 
-VIDEO_FPS = load_scene_config().video.fps  # [1/s] frames of the replay video
 _offscreen = {"failed": False}  # MuJoCo aborts the process on a second try after its GL backend failed once
 
 
@@ -93,7 +92,7 @@ def record(plan, recon, result, out: Path) -> Path:
     if frames is None:
         return _plot(result.reconstruction, out / "replay.png")
     try:
-        return write_mp4(out / "replay.mp4", frames, VIDEO_FPS)
+        return write_mp4(out / "replay.mp4", frames, load_scene_config().video.fps)
     except OSError:  # no MP4 writer here
         return _plot(result.reconstruction, out / "replay.png")
 
@@ -104,7 +103,7 @@ def _paint(model) -> None:
     for g in range(model.ngeom):
         name = model.geom(g).name
         body = model.body(model.geom_bodyid[g]).name
-        if name == "object":
+        if name == replay_mujoco.OBJECT_BODY:
             color = OBJECT_COLOR
         elif name.startswith("static"):
             color = STATIC_COLOR
@@ -116,10 +115,11 @@ def _paint(model) -> None:
 
 
 def _render(plan, recon) -> np.ndarray | None:
-    """(F, H, W, 3) frames of the whole plan at :data:`VIDEO_FPS`, or None without an offscreen renderer."""
+    """(F, H, W, 3) frames of the whole plan at the video's rate (``video.fps``), or None without an offscreen renderer."""
     recorder = _Recorder(camera_view(plan.base, recon))
     try:
-        replay_mujoco.simulate(plan, recon, np.arange(0.0, plan.t[-1] + 1e-9, 1.0 / VIDEO_FPS), video=recorder)
+        times = np.arange(0.0, plan.t[-1] + 1e-9, 1.0 / load_scene_config().video.fps)
+        replay_mujoco.simulate(plan, recon, times, video=recorder)
     except Exception:  # noqa: BLE001 - MuJoCo raises various errors when no GL context can be made
         if recorder.renderer is None:
             _offscreen["failed"] = True

@@ -13,12 +13,11 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import numpy as np
+from warpskill.geometry import quat_multiply
+from warpskill.robot.replay_mujoco import OBJECT_BODY, OBJECT_JOINT
 
 __all__ = ["PERTURBATIONS", "Perturbation"]
 
-OBJECT_BODY = "object"  # the manipulated cuboid's body in warpskill.robot.replay_mujoco's model
-OBJECT_JOINT = "object_free"  # ... and its free joint
 
 
 @dataclasses.dataclass(frozen=True)
@@ -47,10 +46,9 @@ class Perturbation:
         model.geom_friction[:, 0] *= self.friction_scale
         start = model.jnt_qposadr[model.joint(OBJECT_JOINT).id]
         model.qpos0[start:start + 2] += self.shift
-        half = 0.5 * self.turn  # a turn about world z: quaternion (cos, 0, 0, sin) of half the angle, applied first
-        qw, qz = math.cos(half), math.sin(half)
-        w, x, y, z = model.qpos0[start + 3:start + 7]
-        model.qpos0[start + 3:start + 7] = np.array([qw * w - qz * z, qw * x - qz * y, qw * y + qz * x, qw * z + qz * w])
+        half = 0.5 * self.turn  # a turn about world z, after the start's own rotation
+        turn = (math.cos(half), 0.0, 0.0, math.sin(half))
+        model.qpos0[start + 3:start + 7] = quat_multiply(turn, model.qpos0[start + 3:start + 7])
 
 
 PERTURBATIONS: tuple[Perturbation, ...] = (
