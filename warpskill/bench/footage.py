@@ -13,13 +13,13 @@ the box; an empty mask counts 0).
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 from pathlib import Path
 
 import numpy as np
 
 from warpskill.contract.demonstration import DemonstrationError
+from warpskill.data.box_annotations import read_box_annotations
 from warpskill.data.readers import read_video
 
 ANNOTATIONS = "annotations.json"
@@ -57,10 +57,7 @@ def read_footage(folder: str | os.PathLike, clips: list[str] | None = None) -> l
             clip id it lacks, or a clip folder without frames ``0001.jpg``, ...
     """
     folder = Path(folder)
-    with open(folder / ANNOTATIONS) as handle:
-        annotations = json.load(handle)
-    if not isinstance(annotations, dict):
-        raise DemonstrationError(f"{folder / ANNOTATIONS}: expected an object {{clip id: [frame entries]}}")
+    annotations = read_box_annotations(folder / ANNOTATIONS)
     missing = sorted(set(clips or ()) - set(annotations))
     if missing:
         raise DemonstrationError(f"{folder / ANNOTATIONS}: no clip {', '.join(missing)}")

@@ -13,6 +13,7 @@ the optimiser (MediaPipe, the ``video`` extra, only when the hand is to be found
 
 from warpskill.data.box_annotations import (
     SomethingElseVideo,
+    read_box_annotations,
     read_something_else,
     something_else_demonstration,
 )
@@ -50,6 +51,7 @@ __all__ = [
     "read_masks",
     "read_polygons",
     "read_recording",
+    "read_box_annotations",
     "read_something_else",
     "read_video",
     "read_video_demonstration",

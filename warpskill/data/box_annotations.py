@@ -98,15 +98,7 @@ def read_something_else(
             JSON / CSV of this layout, a bad phase range or an unknown action name.
         FileNotFoundError: a file does not exist.
     """
-    with open(annotations, encoding="utf-8-sig") as handle:
-        try:
-            boxes = json.load(handle)
-        except json.JSONDecodeError as exc:
-            raise DemonstrationError(f"{annotations}: not valid JSON ({exc})") from None
-        except UnicodeDecodeError as exc:
-            raise DemonstrationError(f"{annotations}: not UTF-8 text ({exc})") from None
-    if not isinstance(boxes, dict) or not all(isinstance(frames, list) for frames in boxes.values()):
-        raise DemonstrationError(f"{annotations}: expected an object {{video_id: [frame entries]}}")
+    boxes = read_box_annotations(annotations)
     phase_rows = _read_csv(phases, ("video_id", *PHASES))
     phase_table = {vid: {name: _phase(phases, line, row[name]) for name in PHASES} for vid, (line, row) in phase_rows.items()}
     action_table = {}
@@ -120,6 +112,25 @@ def read_something_else(
     return {
         vid: SomethingElseVideo(vid, boxes.get(vid, []), phase_table.get(vid), action_table.get(vid)) for vid in ids
     }
+
+
+def read_box_annotations(path: str | os.PathLike) -> dict[str, list]:
+    """The Something-Else JSON ``{video_id: [frame entries]}`` at ``path``, its layout checked.
+
+    Raises:
+        DemonstrationError: naming the file, for a file that is not UTF-8 JSON of that layout.
+        FileNotFoundError: ``path`` does not exist.
+    """
+    with open(path, encoding="utf-8-sig") as handle:
+        try:
+            boxes = json.load(handle)
+        except json.JSONDecodeError as exc:
+            raise DemonstrationError(f"{path}: not valid JSON ({exc})") from None
+        except UnicodeDecodeError as exc:
+            raise DemonstrationError(f"{path}: not UTF-8 text ({exc})") from None
+    if not isinstance(boxes, dict) or not all(isinstance(frames, list) for frames in boxes.values()):
+        raise DemonstrationError(f"{path}: expected an object {{video_id: [frame entries]}}")
+    return boxes
 
 
 def something_else_demonstration(

@@ -14,7 +14,6 @@ ValueError) whose one line names the file and the problem.
 from __future__ import annotations
 
 import csv
-import json
 import os
 from pathlib import Path
 from typing import NamedTuple
@@ -24,7 +23,7 @@ import numpy as np
 
 from warpskill.contract.actions import check_action
 from warpskill.contract.demonstration import Demonstration, DemonstrationError
-from warpskill.data.box_annotations import SomethingElseVideo, something_else_demonstration
+from warpskill.data.box_annotations import SomethingElseVideo, read_box_annotations, something_else_demonstration
 from warpskill.data.contact import estimate_contact, read_detections
 from warpskill.data.footage import footage_masks
 from warpskill.data.masks import clean_masks
@@ -356,13 +355,7 @@ def _camera_matrix(intrinsics) -> np.ndarray | None:
 
 def _box_masks(path, video_id: str | None, num_frames: int, image_size: tuple[int, int], action: str):
     """Hand, object and static masks of one video's Something-Else boxes, over ``num_frames`` frames."""
-    with open(path) as handle:
-        try:
-            annotations = json.load(handle)
-        except json.JSONDecodeError as exc:
-            raise DemonstrationError(f"{path}: not valid JSON ({exc})") from None
-    if not isinstance(annotations, dict) or not all(isinstance(entries, list) for entries in annotations.values()):
-        raise DemonstrationError(f"{path}: expected an object {{video_id: [frame entries]}}")
+    annotations = read_box_annotations(path)
     if video_id is None:
         if len(annotations) != 1:
             raise DemonstrationError(f"{path}: holds {len(annotations)} videos; give the video id")
