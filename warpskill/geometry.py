@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 __all__ = ["CORNER_SIGNS", "HELD", "NEVER_HELD", "cuboid_corners", "heading", "held_span", "is_held", "min_jerk",
-           "quat_multiply", "release_frame", "rot_z", "support_extent"]
+           "quat_multiply", "quaternions", "release_frame", "rot_z", "support_extent"]
 
 HELD = 0.5
 """``grasped`` above this: the hand holds (or touches) the object."""
@@ -67,6 +67,24 @@ def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                      aw * bx + ax * bw + ay * bz - az * by,
                      aw * by - ax * bz + ay * bw + az * bx,
                      aw * bz + ax * by - ay * bx + az * bw])
+
+
+def quaternions(R: np.ndarray) -> np.ndarray:
+    """(..., 4) unit quaternions (w, x, y, z) of rotation matrices (..., 3, 3) (Shepperd's method)."""
+    R = np.asarray(R, float)
+    m = {(i, j): R[..., i, j] for i in range(3) for j in range(3)}
+    candidates = np.stack(
+        [
+            np.stack([1 + m[0, 0] + m[1, 1] + m[2, 2], m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]], -1),
+            np.stack([m[2, 1] - m[1, 2], 1 + m[0, 0] - m[1, 1] - m[2, 2], m[0, 1] + m[1, 0], m[0, 2] + m[2, 0]], -1),
+            np.stack([m[0, 2] - m[2, 0], m[0, 1] + m[1, 0], 1 - m[0, 0] + m[1, 1] - m[2, 2], m[1, 2] + m[2, 1]], -1),
+            np.stack([m[1, 0] - m[0, 1], m[0, 2] + m[2, 0], m[1, 2] + m[2, 1], 1 - m[0, 0] - m[1, 1] + m[2, 2]], -1),
+        ],
+        axis=-2,
+    )  # (..., 4 candidates, (w, x, y, z)), candidate i is 4 q_i q
+    diagonal = np.stack([candidates[..., i, i] for i in range(4)], axis=-1)
+    best = np.take_along_axis(candidates, diagonal.argmax(axis=-1)[..., None, None], axis=-2)[..., 0, :]
+    return best / np.linalg.norm(best, axis=-1, keepdims=True)
 
 
 def min_jerk(s: np.ndarray) -> np.ndarray:

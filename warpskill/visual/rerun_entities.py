@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from warpskill.geometry import quaternions
 from warpskill.media import (
     GRIPPER_COLOR,
     HAND_COLOR,
@@ -23,7 +24,7 @@ from warpskill.media import (
 )
 from warpskill.visual.rerun_scene import CLASS_IDS, SceneData
 
-__all__ = ["HAND_LENGTH", "HAND_RADIUS", "blueprint", "log_scene", "quaternions"]
+__all__ = ["HAND_LENGTH", "HAND_RADIUS", "blueprint", "log_scene"]
 
 HAND_LENGTH = 0.40
 """Length [m] of the hand cylinder (``docs/formats.md``)."""
@@ -63,7 +64,7 @@ def log_scene(rec, scene: SceneData) -> None:
     _log_box_track(rr, rec, "world/object", index, recon.object_pos, recon.object_rot, recon.object_size,
                    OBJECT_COLOR, "object")
     if recon.num_static:
-        rec.log("world/static", rr.Boxes3D(centers=recon.static_pos, quaternions=quaternions(recon.static_rot),
+        rec.log("world/static", rr.Boxes3D(centers=recon.static_pos, quaternions=_xyzw(recon.static_rot),
                                            half_sizes=recon.static_size / 2, colors=[STATIC_COLOR] * recon.num_static,
                                            fill_mode="solid",
                                            labels=[f"static {k}" for k in range(recon.num_static)]), static=True)
@@ -130,7 +131,7 @@ def _log_hand(rr, rec, index, pos, rot, colors) -> None:
     rec.log("world/hand", rr.Cylinders3D.from_fields(fill_mode="solid", labels=["hand"], show_labels=False),
             static=True)
     rec.send_columns("world/hand", indexes=index, columns=rr.Cylinders3D.columns(
-        centers=pos + rot[:, :, 2] * (HAND_LENGTH / 2), quaternions=quaternions(rot),
+        centers=pos + rot[:, :, 2] * (HAND_LENGTH / 2), quaternions=_xyzw(rot),
         lengths=np.full(n, HAND_LENGTH), radii=np.full(n, HAND_RADIUS), colors=colors))
 
 
@@ -139,7 +140,7 @@ def _log_box_track(rr, rec, entity, index, pos, rot, size, color, label, *, fill
     n = len(pos)
     rec.log(entity, rr.Boxes3D.from_fields(fill_mode=fill_mode, labels=[label], show_labels=False), static=True)
     rec.send_columns(entity, indexes=index, columns=rr.Boxes3D.columns(
-        centers=pos, quaternions=quaternions(rot), half_sizes=np.tile(np.asarray(size) / 2, (n, 1)),
+        centers=pos, quaternions=_xyzw(rot), half_sizes=np.tile(np.asarray(size) / 2, (n, 1)),
         colors=np.tile(np.asarray(color, np.uint8), (n, 1))))
 
 
@@ -214,24 +215,9 @@ def _ground_extent(scene: SceneData) -> tuple[np.ndarray, float]:
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     return 0.5 * (lo + hi), float(0.5 * max(hi - lo) + 0.5)
 
-
-def quaternions(R: np.ndarray) -> np.ndarray:
-    """(..., 4) unit quaternions (x, y, z, w), Rerun's order, of rotation matrices (..., 3, 3) (Shepperd's method)."""
-    R = np.asarray(R, float)
-    m = {(i, j): R[..., i, j] for i in range(3) for j in range(3)}
-    candidates = np.stack(
-        [
-            np.stack([1 + m[0, 0] + m[1, 1] + m[2, 2], m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]], -1),
-            np.stack([m[2, 1] - m[1, 2], 1 + m[0, 0] - m[1, 1] - m[2, 2], m[0, 1] + m[1, 0], m[0, 2] + m[2, 0]], -1),
-            np.stack([m[0, 2] - m[2, 0], m[0, 1] + m[1, 0], 1 - m[0, 0] + m[1, 1] - m[2, 2], m[1, 2] + m[2, 1]], -1),
-            np.stack([m[1, 0] - m[0, 1], m[0, 2] + m[2, 0], m[1, 2] + m[2, 1], 1 - m[0, 0] - m[1, 1] + m[2, 2]], -1),
-        ],
-        axis=-2,
-    )  # (..., 4 candidates, (w, x, y, z)), candidate i is 4 q_i q
-    diagonal = np.stack([candidates[..., i, i] for i in range(4)], axis=-1)
-    best = np.take_along_axis(candidates, diagonal.argmax(axis=-1)[..., None, None], axis=-2)[..., 0, :]
-    q = best / np.linalg.norm(best, axis=-1, keepdims=True)
-    return np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
+def _xyzw(R: np.ndarray) -> np.ndarray:
+    """(..., 4) unit quaternions in Rerun's order (x, y, z, w) of rotation matrices (..., 3, 3)."""
+    return np.roll(quaternions(R), -1, axis=-1)
 
 
 def blueprint(scene: SceneData):
