@@ -14,9 +14,10 @@ robot = require_robot("mujoco")
 import mujoco  # noqa: E402
 
 from warpskill.cli import main  # noqa: E402
-from warpskill.contract import Reconstruction, skill_from  # noqa: E402
+from warpskill.contract import Reconstruction  # noqa: E402
 from warpskill.robot import Placement  # noqa: E402
 from warpskill.robot.model import make_scene  # noqa: E402
+from warpskill.robot.skill_layout import apply_skill, demonstrated_layout, skill_from  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
 
 DIGITS = 1e-5  # [m] MjSpec.to_xml writes 6 significant digits
@@ -53,7 +54,7 @@ def assert_scene(model, data, scene: Reconstruction, base: np.ndarray) -> None:
 def test_export_a_layout_at_a_fixed_base(tmp_path, monkeypatch):
     recon = truth("put_behind")
     recon.save(tmp_path / "recon.npz")
-    layout = skill_from(recon).layout
+    layout = demonstrated_layout(skill_from(recon))
     x, y = layout.object[0] + 0.05, layout.object[1] - 0.03
     sx, sy = layout.statics[0][0] - 0.04, layout.statics[0][1] + 0.02
     assert main(["export", "mjcf", str(tmp_path / "out" / "scene.xml"), str(tmp_path / "recon.npz"),
@@ -62,14 +63,14 @@ def test_export_a_layout_at_a_fixed_base(tmp_path, monkeypatch):
     assert (tmp_path / "out" / "scene_meshes" / "link0.stl").is_file()
     model, data = load(tmp_path / "out" / "scene.xml", monkeypatch, tmp_path)
     moved = dataclasses.replace(layout, object=(x, y, math.radians(20)), statics=((sx, sy, math.radians(45)),))
-    scene = skill_from(recon).apply(moved)
+    scene = apply_skill(skill_from(recon), moved)
     assert_scene(model, data, scene, make_scene(scene, Placement(offset=(0.5, 0.0), yaw=math.pi / 2)).base)
     np.testing.assert_allclose(data.xpos[model.body("object").id][:2], (x, y), atol=DIGITS)
 
 
 def test_export_refuses_an_impossible_layout(tmp_path, capsys):
     truth("put_behind").save(tmp_path / "recon.npz")
-    layout = skill_from(truth("put_behind")).layout
+    layout = demonstrated_layout(skill_from(truth("put_behind")))
     status = main(["export", "mjcf", str(tmp_path / "scene.xml"), str(tmp_path / "recon.npz"),
                    "--object-at", *map(str, layout.statics[0][:2]), "0", "--offset", "0.5", "0.0"])
     err = capsys.readouterr().err

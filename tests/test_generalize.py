@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from warpskill.contract.reconstruction import Reconstruction
-from warpskill.contract.skill import overlap_depth, skill_from
 from warpskill.export.layouts import BASE_CLEARANCE, HALF_ANGLE, INNER, OUTER, ReachableTable, sample_layouts
 from warpskill.robot.placement import check_reach
+from warpskill.robot.skill_layout import apply_skill, overlap_depth, skill_from
 from warpskill.synthetic import make_demonstration
 
 
@@ -30,7 +30,7 @@ def test_layouts_lie_in_reach_apart_and_are_seeded(put_skill):
     assert drawn == sample_layouts(put_skill, 12, seed=4, table=table)
     assert drawn != sample_layouts(put_skill, 12, seed=5, table=table)
     for layout in drawn:
-        recon = put_skill.apply(layout)
+        recon = apply_skill(put_skill, layout)
         radius, bearing = table.polar(recon.object_pos[:1, :2])  # the start on the sector ...
         assert np.all((radius >= INNER) & (radius <= OUTER) & (np.abs(bearing) <= HALF_ANGLE))
         assert table.contains(np.array(layout.statics)[:, :2]).all()
@@ -49,7 +49,7 @@ def test_a_long_objects_layouts_keep_it_out_of_the_robots_base():
     table = ReachableTable.of(skill)
     base = table.base[:2, 3]
     for layout in sample_layouts(skill, 30, seed=0, table=table):
-        recon = skill.apply(layout)
+        recon = apply_skill(skill, layout)
         grid = np.stack(np.meshgrid(*[np.linspace(-0.5, 0.5, 25)] * 3), -1).reshape(-1, 3)  # through the box
         points = recon.object_pos[0] + (grid * recon.object_size) @ recon.object_rot[0].T
         assert np.linalg.norm(points[:, :2] - base, axis=1).min() >= BASE_CLEARANCE - 1e-3

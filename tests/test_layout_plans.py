@@ -12,8 +12,9 @@ from robot_support import require_robot
 
 robot = require_robot("placo", "mujoco")
 from warpskill.cli import main  # noqa: E402
-from warpskill.contract import Layout, LayoutError, Reconstruction, Skill, skill_from  # noqa: E402
+from warpskill.contract import Layout, LayoutError, Reconstruction, Skill  # noqa: E402
 from warpskill.contract.replay import Replay  # noqa: E402
+from warpskill.robot.skill_layout import demonstrated_layout, skill_from  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
 
 
@@ -34,11 +35,11 @@ def test_identity_layout_plans_exactly_as_the_reconstruction():
     recon = truth("push_left_to_right")
     plain = robot.retarget(recon)
     skill = skill_from(recon)
-    for carried in (robot.retarget(recon, layout=skill.layout), robot.retarget(skill)):
+    for carried in (robot.retarget(recon, layout=demonstrated_layout(skill)), robot.retarget(skill)):
         assert carried.grasp_name == plain.grasp_name and carried.num_samples == plain.num_samples
         np.testing.assert_allclose(carried.q, plain.q, atol=1e-9)
         np.testing.assert_allclose(carried.base, plain.base, atol=1e-12)
-        assert carried.layout == skill.layout
+        assert carried.layout == demonstrated_layout(skill)
     assert plain.layout is None
 
 
@@ -51,7 +52,7 @@ def test_identity_layout_plans_exactly_as_the_reconstruction():
 ])
 def test_moved_layouts_replay_successfully(action, shift):
     recon = truth(action)
-    layout = moved(skill_from(recon).layout, *shift)
+    layout = moved(demonstrated_layout(skill_from(recon)), *shift)
     plan = robot.retarget(recon, layout=layout)
     result = robot.replay(plan, recon, engine="mujoco")
     assert result.success, result.evaluation.checks
@@ -64,7 +65,7 @@ def test_moved_layouts_replay_successfully(action, shift):
 
 def test_out_of_reach_layout_is_refused():
     recon = truth("put_behind")
-    layout = skill_from(recon).layout
+    layout = demonstrated_layout(skill_from(recon))
     far = dataclasses.replace(layout, object=(layout.object[0] + 1.6, *layout.object[1:]))
     with pytest.raises(LayoutError, match="layout refused: out of the Panda's reach") as error:
         robot.retarget(recon, layout=far)
@@ -90,7 +91,7 @@ def test_cli_retarget_and_replay_a_layout(tmp_path):
     assert main(["retarget", str(tmp_path / "recon.npz"), "-o", str(tmp_path / "plan.npz"),
                  "--object-at", str(x), str(y), "30"]) == 0
     plan = robot.RobotPlan.load(tmp_path / "plan.npz")
-    assert Skill.load(tmp_path / "skill.npz").layout == skill_from(recon).layout  # beside the reconstruction
+    assert demonstrated_layout(Skill.load(tmp_path / "skill.npz")) == demonstrated_layout(skill_from(recon))  # beside the reconstruction
     assert plan.layout.object == pytest.approx((x, y, math.radians(30)))
     assert main(["replay", str(tmp_path / "plan.npz"), str(tmp_path / "recon.npz"), "-o", str(tmp_path / "out")]) == 0
     replayed = Replay.load(tmp_path / "out" / "replay.npz")

@@ -10,10 +10,9 @@ import pytest
 from robot_support import require_robot
 
 robot = require_robot("placo", "mujoco")
-from warpskill.contract import LayoutError, Reconstruction, skill_from  # noqa: E402
-from warpskill.geometry import cuboid_corners  # noqa: E402
-from warpskill.contract.skill import SWING_SPEED  # noqa: E402
+from warpskill.contract import LayoutError, Reconstruction  # noqa: E402
 from warpskill.export.layouts import sample_layouts  # noqa: E402
+from warpskill.geometry import cuboid_corners  # noqa: E402
 from warpskill.robot.model import make_scene  # noqa: E402
 from warpskill.robot.placement import (  # noqa: E402
     REACH,
@@ -25,6 +24,7 @@ from warpskill.robot.placement import (  # noqa: E402
     path_wrists,
 )
 from warpskill.robot.replaying import RELEASE_CHECK, release_checks  # noqa: E402
+from warpskill.robot.skill_layout import SWING_SPEED, apply_skill, demonstrated_layout, skill_from, takeover  # noqa: E402
 from warpskill.robot.targets import ONTO_CLEARANCE  # noqa: E402
 from warpskill.synthetic import make_demonstration  # noqa: E402
 
@@ -102,7 +102,7 @@ def test_the_placement_keeps_the_margin_over_the_whole_held_path():
 def test_layouts_drawn_keep_the_margin():
     skill = skill_from(truth("put_behind"))
     for layout in sample_layouts(skill, 5, seed=3):
-        check_reach(skill.apply(layout))  # raises where a drawn path would run into the margin
+        check_reach(apply_skill(skill, layout))  # raises where a drawn path would run into the margin
 
 
 def test_an_object_swung_into_view_starts_a_layout_where_it_has_slowed_down():
@@ -116,16 +116,16 @@ def test_an_object_swung_into_view_starts_a_layout_where_it_has_slowed_down():
     object_pos[: held[0], 2] += 0.2
     carried = dataclasses.replace(recon, grasped=grasped, object_pos=object_pos)
     skill = skill_from(carried)
-    k = skill.takeover()
+    k = takeover(skill)
     assert k == held[0]
     speed = np.linalg.norm(np.diff(object_pos, axis=0), axis=1) * recon.fps
     assert speed[k - 1] > SWING_SPEED and np.all(speed[k:held[-1]] <= SWING_SPEED)
-    np.testing.assert_allclose(skill.layout.object[:2], recon.object_pos[k, :2], atol=1e-9)
+    np.testing.assert_allclose(demonstrated_layout(skill).object[:2], recon.object_pos[k, :2], atol=1e-9)
     layout = sample_layouts(skill, 1, seed=0)[0]  # the 2 m swing is not part of a layout's path
-    applied = skill.apply(layout)
+    applied = apply_skill(skill, layout)
     assert np.ptp(applied.object_pos[:k], axis=0).max() == 0.0  # it waits there, resting on the table
     assert applied.object_corners()[0, :, 2].min() == pytest.approx(0.0, abs=1e-9)
-    assert skill_from(applied).takeover() == 0  # the layout's reconstruction starts still
+    assert takeover(skill_from(applied)) == 0  # the layout's reconstruction starts still
 
 
 @pytest.fixture(scope="module")

@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from warpskill.contract import Layout, LayoutError, Reconstruction, Skill, SkillError, evaluate, skill_from
-from warpskill.contract.skill import GRAZE, overlap_depth
+from warpskill.contract import Layout, LayoutError, Reconstruction, Skill, SkillError, evaluate
 from warpskill.geometry import heading
+from warpskill.robot.skill_layout import GRAZE, apply_skill, demonstrated_layout, overlap_depth, skill_from
 from warpskill.synthetic import make_demonstration
 
 MOTION_KEYS = ("object_pos", "object_rot", "hand_pos", "hand_rot", "static_pos", "static_rot")
@@ -39,7 +39,7 @@ def moved(layout: Layout, dx: float, dy: float, dyaw: float, *, statics: bool = 
 def test_identity_layout_reproduces_the_reconstruction(action):
     recon = truth(action)
     skill = skill_from(recon)
-    again = skill.apply(skill.layout)
+    again = apply_skill(skill, demonstrated_layout(skill))
     for key in MOTION_KEYS:
         np.testing.assert_allclose(getattr(again, key), getattr(recon, key), atol=1e-12, err_msg=key)
     np.testing.assert_array_equal(again.grasped, recon.grasped)
@@ -53,7 +53,7 @@ def test_save_and_load_round_trip(tmp_path):
     for field in dataclasses.fields(Skill):
         np.testing.assert_array_equal(np.asarray(getattr(loaded, field.name)), np.asarray(getattr(skill, field.name)),
                                       err_msg=field.name)
-    assert loaded.layout == skill.layout
+    assert demonstrated_layout(loaded) == demonstrated_layout(skill)
     assert loaded.onset == pytest.approx(skill.onset) and math.isfinite(loaded.release)
 
 
@@ -73,7 +73,7 @@ def test_pull_and_push_keep_their_world_direction(action):
     recon = truth(action)
     skill = skill_from(recon)
     dx, dy, dyaw = 0.07, -0.05, math.radians(35)
-    carried = skill.apply(moved(skill.layout, dx, dy, dyaw))
+    carried = apply_skill(skill, moved(demonstrated_layout(skill), dx, dy, dyaw))
     # The path is the demonstrated one, translated: left to right stays left to right.
     np.testing.assert_allclose(carried.object_pos - carried.object_pos[0], recon.object_pos - recon.object_pos[0],
                                atol=1e-12)
@@ -89,7 +89,7 @@ def test_push_contact_follows_the_face_that_faces_the_push():
     recon = truth("push_left_to_right")
     skill = skill_from(recon)
     k_on = int(np.flatnonzero(recon.grasped > 0.5)[0])
-    carried = skill.apply(moved(skill.layout, 0.0, 0.0, math.pi / 2))  # the object's y now spans world x
+    carried = apply_skill(skill, moved(demonstrated_layout(skill), 0.0, 0.0, math.pi / 2))  # the object's y now spans world x
     size = recon.object_size
     before = recon.hand_pos[k_on, 0] - recon.object_pos[k_on, 0]
     after = carried.hand_pos[k_on, 0] - carried.object_pos[k_on, 0]
@@ -101,7 +101,7 @@ def test_grasp_rotates_with_the_object():
     recon = truth("pick_up")
     skill = skill_from(recon)
     dyaw = math.radians(60)
-    carried = skill.apply(moved(skill.layout, 0.05, 0.02, dyaw))
+    carried = apply_skill(skill, moved(demonstrated_layout(skill), 0.05, 0.02, dyaw))
     for k in (0, 20, recon.num_frames - 1):  # the hand in the object's frame is the demonstrated one
         np.testing.assert_allclose(carried.object_rot[k].T @ (carried.hand_pos[k] - carried.object_pos[k]),
                                    recon.object_rot[k].T @ (recon.hand_pos[k] - recon.object_pos[k]), atol=1e-12)
@@ -114,9 +114,9 @@ def test_grasp_rotates_with_the_object():
 def test_put_behind_releases_behind_the_moved_static_box():
     recon = truth("put_behind")
     skill = skill_from(recon)
-    layout = skill.layout
+    layout = demonstrated_layout(skill)
     static = (layout.statics[0][0] + 0.12, layout.statics[0][1] + 0.05, layout.statics[0][2] + math.pi / 2)
-    carried = skill.apply(dataclasses.replace(layout, statics=(static,)))
+    carried = apply_skill(skill, dataclasses.replace(layout, statics=(static,)))
     k_off = int(np.flatnonzero(recon.grasped > 0.5)[-1]) + 1
     demo_offset = recon.object_pos[k_off] - recon.static_pos[0]
     new_offset = carried.object_pos[k_off] - carried.static_pos[0]
@@ -138,7 +138,7 @@ def test_a_carried_object_is_lifted_over_a_box_in_its_way():
     # A static box 20 cm tall: the demonstrated carry (bottom up to 17.8 cm) would run 2.2 cm into it.
     tall = dataclasses.replace(recon, static_pos=recon.static_pos * (1, 1, 0) + (0, 0, 0.10),
                                static_size=recon.static_size * (1, 1, 0) + (0, 0, 0.20))
-    carried = skill_from(tall).apply(skill_from(tall).layout)
+    carried = apply_skill(skill_from(tall), demonstrated_layout(skill_from(tall)))
     depths = [overlap_depth(carried.object_pos[f], carried.object_rot[f], carried.object_size, carried.static_pos[0],
                             carried.static_rot[0], carried.static_size[0]) for f in range(carried.num_frames)]
     assert max(depths) == 0.0
@@ -163,7 +163,7 @@ def test_a_release_inside_the_box_is_carried_as_touching_it():
                                  / abs(toward[axis]))
     pressed = skill_from(inside)
     assert pressed.release_gap == pytest.approx(-0.02)
-    carried = pressed.apply(pressed.layout)
+    carried = apply_skill(pressed, demonstrated_layout(pressed))
     extents = [0.5 * float(np.abs(rot[axis]) @ size) for rot, size in
                ((carried.static_rot[0], carried.static_size[0]), (carried.object_rot[k_off], carried.object_size))]
     gap = abs(carried.object_pos[k_off, axis] - carried.static_pos[0, axis]) - sum(extents)
@@ -179,7 +179,7 @@ def test_an_object_put_onto_the_box_stands_on_its_top_from_the_release_on():
     sink[k_off:] = np.linspace(0.0, 0.015, recon.num_frames - k_off)
     sunk = dataclasses.replace(recon, object_pos=recon.object_pos - sink[:, None] * (0.0, 0.0, 1.0))
     skill = skill_from(sunk)
-    carried = skill.apply(moved(skill.layout, 0.05, -0.03, 0.3))
+    carried = apply_skill(skill, moved(demonstrated_layout(skill), 0.05, -0.03, 0.3))
     top = carried.static_corners()[0, :, 2].max()
     bottoms = carried.object_corners()[k_off:, :, 2].min(1)
     truth_bottoms = recon.object_corners()[k_off:, :, 2].min(1)
@@ -192,20 +192,20 @@ def test_resized_object_keeps_its_bottom():
     recon = truth("put_onto")
     skill = skill_from(recon)
     bigger = tuple(recon.object_size * (1.0, 1.0, 1.4))
-    carried = skill.apply(dataclasses.replace(skill.layout, object_size=bigger))
+    carried = apply_skill(skill, dataclasses.replace(demonstrated_layout(skill), object_size=bigger))
     np.testing.assert_allclose(carried.object_corners()[..., 2].min(1), recon.object_corners()[..., 2].min(1),
                                atol=1e-9)
 
 
 @pytest.mark.parametrize("change, why", [
-    (lambda s: dataclasses.replace(s.layout, statics=()), "places 0 static box.*has 1"),
-    (lambda s: dataclasses.replace(s.layout, object=(*s.layout.statics[0][:2], 0.0)),
+    (lambda s: dataclasses.replace(demonstrated_layout(s), statics=()), "places 0 static box.*has 1"),
+    (lambda s: dataclasses.replace(demonstrated_layout(s), object=(*demonstrated_layout(s).statics[0][:2], 0.0)),
      "object's start overlaps static box 0"),
 ])
 def test_impossible_layouts_are_refused_in_one_line(change, why):
     skill = skill_from(truth("put_next_to"))
     with pytest.raises(LayoutError, match=why) as error:
-        skill.apply(change(skill))
+        apply_skill(skill, change(skill))
     assert "\n" not in str(error.value) and str(error.value).startswith("layout refused: ")
 
 
@@ -216,10 +216,10 @@ def test_overlapping_static_boxes_are_refused():
                               static_rot=np.r_[recon.static_rot, recon.static_rot],
                               static_size=np.r_[recon.static_size, recon.static_size])
     skill = skill_from(two)
-    skill.apply(skill.layout)
-    stacked = dataclasses.replace(skill.layout, statics=(skill.layout.statics[0],) * 2)
+    apply_skill(skill, demonstrated_layout(skill))
+    stacked = dataclasses.replace(demonstrated_layout(skill), statics=(demonstrated_layout(skill).statics[0],) * 2)
     with pytest.raises(LayoutError, match=r"static boxes 0 and 1 overlap \(\d+\.\d cm deep\)"):
-        skill.apply(stacked)
+        apply_skill(skill, stacked)
 
 
 def test_a_push_into_a_static_box_is_refused():
@@ -229,7 +229,7 @@ def test_a_push_into_a_static_box_is_refused():
     box = dataclasses.replace(recon, static_pos=end[None] + (0.0, 0.0, 0.0), static_rot=np.eye(3)[None],
                               static_size=np.array([[0.05, 0.05, 0.1]]))
     with pytest.raises(LayoutError, match="object's path at t = .* overlaps static box 0"):
-        skill_from(box).apply(skill_from(box).layout)
+        apply_skill(skill_from(box), demonstrated_layout(skill_from(box)))
     assert skill.num_static == 0
 
 

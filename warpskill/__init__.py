@@ -46,7 +46,7 @@ _EXPORTS = {
     "Skill": "contract.skill",
     "Layout": "contract.skill",
     "LayoutError": "contract.skill",
-    "skill_from": "contract.skill",
+    "skill_from": "robot.skill_layout",
     "save_pictures": "visual.pictures",
     "view": "visual.rerun_view",
     **{layer: None for layer in ("contract", "data", "engine", "optimizer", "robot", "visual", "cluster", "bench")},

@@ -139,7 +139,7 @@ def robot_step(recon, folder: Path | None = None, *, engines: Sequence[str] = EN
 
     Args:
         recon: the reconstruction (its ``action`` is the one judged); with ``layout``, the
-            layout's scene (``skill.apply(layout)``) that the replays are judged on.
+            layout's scene (``apply_skill(skill, layout)``) that the replays are judged on.
         folder: where to keep ``plan.npz``, ``replay_<engine>.npz`` and the video (None: nothing written).
         engines: replay engines, in order (``mujoco``, ``newton``).
         device: Warp device of the Newton replay.

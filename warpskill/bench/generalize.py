@@ -30,8 +30,9 @@ from warpskill.bench.outcomes import CaseOutcome, record_outcomes
 from warpskill.contract.evaluation import success_table
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
-from warpskill.contract.skill import LayoutError, skill_from
+from warpskill.contract.skill import LayoutError
 from warpskill.export.layouts import layouts as random_layouts
+from warpskill.robot.skill_layout import apply_skill, skill_from
 
 __all__ = ["bench_generalize"]
 
@@ -84,7 +85,7 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
         skill, done = skill_from(recon), 0
         try:
             for k, layout in enumerate(islice(random_layouts(skill, seed=seed + i), layouts)):
-                outcome = robot_step(skill.apply(layout), engines=engines, device=device, robust=robust,
+                outcome = robot_step(apply_skill(skill, layout), engines=engines, device=device, robust=robust,
                                      skill=skill, layout=layout)
                 outcomes.append(outcome)
                 cases.append(_case(f"{_short(name)}/layout {k}", skill.action, outcome))

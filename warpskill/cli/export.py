@@ -15,7 +15,7 @@ from pathlib import Path
 from warpskill import robot  # a lazy package: its names (placo, MuJoCo) load on first use
 from warpskill.cli.common import Refused, add_placement_options, placement
 from warpskill.cli.robot import add_layout_options, layout_from, refused
-from warpskill.contract import LayoutError, Reconstruction, skill_from
+from warpskill.contract import LayoutError, Reconstruction
 
 __all__ = ["register"]
 
@@ -76,7 +76,7 @@ def _mjcf(args) -> int:
 
 def _carried(recon, layout):
     """``recon``'s skill carried to ``layout``; ``recon`` itself without one."""
-    return recon if layout is None else skill_from(recon).apply(layout)
+    return recon if layout is None else robot.apply_skill(robot.skill_from(recon), layout)
 
 
 def _lerobot(args) -> int:

@@ -15,7 +15,7 @@ from warpskill.cli.common import (
     report,
     save_plan,
 )
-from warpskill.contract import LayoutError, Reconstruction, ResultsFolder, skill_from
+from warpskill.contract import LayoutError, Reconstruction, ResultsFolder
 
 __all__ = ["register"]
 
@@ -62,7 +62,7 @@ def layout_from(args, recon):
     ``--object-size`` (degrees to radians) for ``recon``'s skill, or None where none is given."""
     if args.object_at is None and args.static_at is None:
         return None
-    layout = skill_from(recon).layout
+    layout = robot.demonstrated_layout(robot.skill_from(recon))
     if args.object_at is not None:
         x, y, yaw = args.object_at
         layout = dataclasses.replace(layout, object=(x, y, math.radians(yaw)))
@@ -90,7 +90,7 @@ def _retarget(args) -> int:
         print(f"layout: {layout.describe()}")
     if str(recon.action):  # what the video teaches, beside the reconstruction (docs/formats.md)
         skill_path = args.reconstruction.with_name("skill.npz")
-        skill_from(recon).save(skill_path)
+        robot.skill_from(recon).save(skill_path)
         print(f"skill: {skill_path}")
     return 0
 

@@ -3,7 +3,7 @@
 Owns the demonstration and reconstruction files (:class:`Demonstration`,
 :class:`Reconstruction`, their ``.npz`` I/O and checks), the action names, the camera
 intrinsics, the contact-signal filter, the paper's success criteria (:func:`evaluate`) and the
-skill record (:class:`Skill`, :func:`skill_from`, carried to a :class:`Layout`).
+skill and layout records (:class:`Skill`, :class:`Layout`).
 May import NumPy and the standard library only: loading a file, judging a reconstruction
 or reading annotations never pulls in torch or Warp.
 """
@@ -13,10 +13,10 @@ from warpskill.contract.camera import Intrinsics, default_intrinsics
 from warpskill.contract.demonstration import Demonstration, DemonstrationError
 from warpskill.contract.evaluation import Evaluation, evaluate, success_table
 from warpskill.contract.reconstruction import Reconstruction, ReconstructionError
-from warpskill.contract.signals import majority_filter
 from warpskill.contract.replay import Replay
 from warpskill.contract.results_folder import ResultsFolder, ResultsFolderError
-from warpskill.contract.skill import Layout, LayoutError, Skill, SkillError, skill_from
+from warpskill.contract.signals import majority_filter
+from warpskill.contract.skill import Layout, LayoutError, Skill, SkillError
 
 __all__ = [
     "ACTIONS",
@@ -38,6 +38,5 @@ __all__ = [
     "evaluate",
     "has_static_object",
     "majority_filter",
-    "skill_from",
     "success_table",
 ]

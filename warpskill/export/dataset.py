@@ -33,7 +33,7 @@ import warpskill
 from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.evaluation import evaluate
 from warpskill.contract.reconstruction import Reconstruction, ReconstructionError
-from warpskill.contract.skill import LayoutError, SkillError, skill_from
+from warpskill.contract.skill import LayoutError, SkillError
 from warpskill.export.lerobot import CODEBASE_VERSION, LeRobotWriter
 from warpskill.export.rollouts import (
     CAMERAS,
@@ -46,6 +46,7 @@ from warpskill.export.rollouts import (
     film_attempt,
     rollouts,
 )
+from warpskill.robot.skill_layout import skill_from
 
 __all__ = ["ATTEMPTS_PER_EPISODE", "EXPORT_VERSION", "PROVENANCE", "ExportError", "ExportRequest", "ExportSummary",
            "SkillOutcome", "export_lerobot"]

@@ -34,10 +34,11 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from warpskill.contract.skill import SWING_SPEED, Layout, LayoutError, Skill, overlap_depth
+from warpskill.contract.skill import Layout, LayoutError, Skill
 from warpskill.geometry import is_held
 from warpskill.robot.model import make_scene
 from warpskill.robot.placement import check_reach
+from warpskill.robot.skill_layout import SWING_SPEED, apply_skill, demonstrated_layout, overlap_depth
 
 __all__ = ["BASE_CLEARANCE", "HALF_ANGLE", "INNER", "OUTER", "ReachableTable", "layouts", "sample_layouts"]
 
@@ -67,7 +68,7 @@ class ReachableTable:
     @classmethod
     def of(cls, skill: Skill) -> "ReachableTable":
         """The sector in front of the robot placed for the skill's demonstrated layout."""
-        return cls(base=make_scene(skill.apply(skill.layout)).base)
+        return cls(base=make_scene(apply_skill(skill, demonstrated_layout(skill))).base)
 
     def polar(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Distances [m] and bearings [rad] of world points (..., 2) from the base."""
@@ -139,7 +140,7 @@ def _draw(skill: Skill, table: ReachableTable, rng: np.random.Generator) -> Layo
 def _refusal(skill: Skill, layout: Layout, table: ReachableTable) -> str:
     """Why ``layout`` is refused (the module doc's conditions, in a few words), or "" if it is kept."""
     try:
-        recon = skill.apply(layout)
+        recon = apply_skill(skill, layout)
     except LayoutError:
         return "boxes overlap on the path"
     boxes = [(recon.object_pos[0], recon.object_rot[0], recon.object_size),

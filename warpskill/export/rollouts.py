@@ -29,6 +29,7 @@ from warpskill.robot import replay, replay_mujoco, retarget
 from warpskill.robot.model import FINGER_JOINTS
 from warpskill.robot.plan import RobotPlan
 from warpskill.robot.scene_config import load_scene_config
+from warpskill.robot.skill_layout import apply_skill
 
 __all__ = ["CAMERAS", "EE_POSE_NAMES", "ENGINE", "FOVY", "STATE_NAMES", "TASKS", "Attempt", "Calibration", "Camera",
            "Episode", "attempt", "film", "film_attempt", "pose_vectors", "rollouts"]
@@ -281,7 +282,7 @@ def rollouts(skill: Skill, *, seed: int = 0) -> Iterator[Attempt]:
 def attempt(skill: Skill, layout: Layout) -> Attempt:
     """Plan and replay ``skill`` in ``layout``: a refused layout or a failed replay is an attempt with its reason."""
     try:
-        recon = skill.apply(layout)
+        recon = apply_skill(skill, layout)
         plan = retarget(skill, layout=layout)
     except ValueError as error:  # LayoutError, PlanError, SkillError: the layout is refused
         return Attempt(layout, f"plan: {error}")

@@ -20,6 +20,9 @@ from warpskill.lazy import lazy_exports
 
 _EXPORTS = {
     "retarget": "retargeting",
+    "skill_from": "skill_layout",
+    "apply_skill": "skill_layout",
+    "demonstrated_layout": "skill_layout",
     "robot_reconstruction": "retargeting",
     "RobotPlan": "plan",
     "PlanError": "plan",

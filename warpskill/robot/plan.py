@@ -40,7 +40,8 @@ from pathlib import Path
 import numpy as np
 
 from warpskill.contract.npz import read_npz, save_npz_atomic
-from warpskill.contract.skill import Layout, skill_from
+from warpskill.contract.skill import Layout
+from warpskill.robot.skill_layout import apply_skill, skill_from
 
 
 class PlanError(ValueError):
@@ -93,7 +94,7 @@ class RobotPlan:
         A plan made for a layout first carries ``recon``'s skill there (the hand's path too).
         """
         if self.layout is not None:
-            recon = skill_from(recon).apply(self.layout)
+            recon = apply_skill(skill_from(recon), self.layout)
         if self.object_size is None:
             return recon
         changes = {name: np.asarray(getattr(self, name), float) for name in

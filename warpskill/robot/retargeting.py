@@ -44,7 +44,7 @@ import time
 import numpy as np
 
 from warpskill.contract.reconstruction import Reconstruction
-from warpskill.contract.skill import SWING_SPEED, Layout, Skill, skill_from
+from warpskill.contract.skill import Layout, Skill
 from warpskill.geometry import NEVER_HELD, held_span, is_held
 from warpskill.robot.grasps import FIT_MARGIN, GraspPose, candidate_poses, rank_poses
 from warpskill.robot.model import HOME_Q, MAX_OPENING, Placement, Scene, make_scene
@@ -52,6 +52,7 @@ from warpskill.robot.placement import WRIST, check_reach, rank_placements, reach
 from warpskill.robot.plan import PlanError, RobotPlan
 from warpskill.robot.planner import DT, Planner
 from warpskill.robot.sizes import clear_path, fit_sizes, rest_until
+from warpskill.robot.skill_layout import SWING_SPEED, apply_skill, demonstrated_layout, skill_from
 from warpskill.robot.targets import (
     PREGRASP,
     hold_pose,
@@ -125,8 +126,8 @@ def retarget(recon: Reconstruction | Skill, *, layout: Layout | None = None, pla
         raise ValueError(f"placement must be 'auto' or a Placement, got {placement!r}")
     if isinstance(recon, Skill) or layout is not None:
         skill = recon if isinstance(recon, Skill) else skill_from(recon)
-        layout = skill.layout if layout is None else layout
-        recon = skill.apply(layout)
+        layout = demonstrated_layout(skill) if layout is None else layout
+        recon = apply_skill(skill, layout)
         check_reach(recon, None if auto else placement)
     sizes = {"object_size": object_size, "static_sizes": static_sizes, "keep_size": keep_size}
     where = Placement() if auto else placement

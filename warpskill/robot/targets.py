@@ -30,12 +30,12 @@ import math
 import numpy as np
 
 from warpskill.contract.reconstruction import Reconstruction
-from warpskill.contract.skill import ONTO_INSET
 from warpskill.geometry import cuboid_corners, min_jerk
 from warpskill.robot.grasps import GraspPose
 from warpskill.robot.model import FINGER_SPEED, MAX_OPENING, Scene
 from warpskill.robot.plan import CLOSE_TIME, OPEN_TIME
 from warpskill.robot.planner import DT
+from warpskill.robot.skill_layout import ONTO_INSET
 
 __all__ = [
     "LEAD_IN",

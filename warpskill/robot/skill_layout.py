@@ -1,0 +1,424 @@
+"""A skill from a reconstruction, and carried to a new layout: the layout planning of the skill record.
+
+:func:`skill_from` fills a :class:`~warpskill.contract.skill.Skill` (``skill.npz``, ``docs/formats.md``)
+with the action, the timing (grasp signal, contact onset and release [s]), the cuboid sizes, the
+demonstrated layout, and the motion relative to the objects:
+
+- the object's motion relative to its start: the displacement in the world's axes and the
+  rotation in the world's frame (a pull or push keeps its world direction: left to right
+  stays left to right; a pick-up lifts up);
+- the hand relative to the object (approach: to the object at the onset; contact: to the
+  object in that frame; retreat: to the object at the release). Grasp actions (``pick_up``,
+  ``put_*``) hold the object somewhere on it: the hand is kept in the object's own axes,
+  scaled with its size. Pulls and pushes press or hook the face that faces the world
+  direction: the hand is kept in the world's axes at the object's centre, moved out or
+  in with that face;
+- for ``put_*``, the release relative to the (first) static box as seen from the camera:
+  the object centre's offset from the box centre in world axes, along the dominant
+  horizontal world axis as the gap between their world extents (at least touching: a
+  reconstruction that ends the object a little inside the box meant it beside the box);
+  for ``put_onto``, the offset is kept inside the box's top (:data:`ONTO_INSET`).
+
+An object held from the first frame was carried into view: in a layout it starts where the
+demonstration has slowed down for good (:func:`takeover`), resting on the table.
+
+A carried object (``pick_up``, ``put_*``) whose path in a new layout would run into a
+static box is lifted over it, as a robot would carry it: a reconstruction's path may graze
+a box's edge by a few centimetres.
+
+A :class:`~warpskill.contract.skill.Layout` places the object's start and each static box on the table
+(x, y, yaw) in the reconstruction's world frame; :func:`apply_skill` makes the reconstruction of the
+skill there, which retargeting, replays and :func:`~warpskill.contract.evaluation.evaluate`
+consume as any reconstruction.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from warpskill.contract.actions import check_action
+from warpskill.contract.reconstruction import Reconstruction
+from warpskill.contract.skill import Layout, LayoutError, Skill, SkillError
+from warpskill.geometry import NEVER_HELD, heading, held_span, is_held, rot_z, support_extent
+
+__all__ = ["ONTO_INSET", "SWING_SPEED", "TAKEOVER_SPEED", "apply_skill", "demonstrated_layout", "overlap_depth",
+           "skill_from", "takeover"]
+
+OVERLAP_TOLERANCE = 0.01
+"""[m] boxes that interpenetrate deeper than this make a layout impossible."""
+
+CARRY_CLEARANCE = 0.01
+"""[m] a carried object whose path would run into a static box passes this far above its top."""
+
+GRAZE = 0.005
+"""[m] a carried object touching a static box less deeply than this (set down on it) is not lifted."""
+
+LIFT_RATE = 0.2
+"""[m/s] how fast a carried object is raised to that clearance and lowered from it."""
+
+MIN_TRAVEL = 0.01
+"""[m] a pull or push moving the object less than this has no world direction to keep."""
+
+ONTO_INSET = 0.03
+"""[m] a put onto lets go with the object's centre at least this far inside the edges of the static
+box's top (half the top's half extent on a top narrower than twice that): the object settles by a
+centimetre or so, and a centre at the edge tips it off the box (a reconstruction may end the
+object beside the box it was put onto)."""
+
+SWING_SPEED = 1.7
+"""[m/s] an object held from the first frame that moves faster than this (between two frames)
+is still being swung into view: a new layout starts it where it has slowed down for good
+(:meth:`Skill.takeover`). The Panda's Cartesian speed limit; the robot takes over a carried-in
+object no faster than this (:data:`warpskill.robot.retargeting.CARRY_SPEED`)."""
+
+TAKEOVER_SPEED = 0.5 * SWING_SPEED
+"""[m/s] the object of a swing is taken over at the first frame it moves slower than this: the
+robot starts it from rest (at the swing speed itself, the plan lags 3 cm behind at once)."""
+
+
+def _on_top_floor(pos: np.ndarray, rot: np.ndarray, size: np.ndarray, static_pos: np.ndarray,
+                  static_rot: np.ndarray, static_size: np.ndarray) -> np.ndarray:
+    """(F,) [m] the lowest centre height of an object (centres ``pos`` (F, 3), rotations ``rot``
+    (F, 3, 3)) set down on a static box's top: its bottom at most :data:`GRAZE` into the box,
+    in the frames where its centre is over the top face; -inf elsewhere.
+
+    The physics' point contact lets an object resting on a static box sink into it, by up to
+    about a centimetre over the seconds after the release; a skill set down on the box stands
+    on its top instead, as a layout's overlap check asks.
+    """
+    up = np.array([0.0, 0.0, 1.0])
+    local = (pos - static_pos) @ static_rot
+    over = np.all(np.abs(local[:, :2]) <= 0.5 * static_size[:2], axis=1)
+    top = static_pos[2] + support_extent(static_rot, static_size, up)
+    floor = top - GRAZE + np.array([support_extent(r, size, up) for r in rot])
+    return np.where(over, floor, -np.inf)
+
+
+def overlap_depth(pos_a, rot_a, size_a, pos_b, rot_b, size_b) -> float:
+    """How deep [m] two cuboids interpenetrate (0 where they are apart): the least overlap over
+    the separating-axis candidates (the 3 + 3 face normals and their 9 cross products)."""
+    axes = [rot_a[:, i] for i in range(3)] + [rot_b[:, i] for i in range(3)]
+    axes += [np.cross(rot_a[:, i], rot_b[:, j]) for i in range(3) for j in range(3)]
+    gap = np.asarray(pos_b, float) - np.asarray(pos_a, float)
+    depth = math.inf
+    for axis in axes:
+        norm = np.linalg.norm(axis)
+        if norm < 1e-9:
+            continue
+        axis = axis / norm
+        reach = support_extent(rot_a, size_a, axis) + support_extent(rot_b, size_b, axis)
+        depth = min(depth, reach - abs(float(gap @ axis)))
+        if depth <= 0.0:
+            return 0.0
+    return depth
+
+
+def demonstrated_layout(skill: Skill) -> Layout:
+    """The demonstrated layout: :func:`apply_skill` of it reproduces the reconstruction (for an object
+    carried into view, from its take-over on, resting on the table before: :func:`takeover`)."""
+    start_pos, start_rot, _, _ = _motion(skill)
+    return Layout(object=(*start_pos[:2], heading(start_rot)),
+                  statics=tuple((*p[:2], heading(R)) for p, R in zip(skill.static_pos, skill.static_rot)))
+
+
+def takeover(skill: Skill) -> int:
+    """The frame a new layout starts the object at: 0, or for an object held from the first
+    frame (carried into view: its start is unknown), the first frame after the last one, before
+    the last held frame, at which it moves faster than :data:`SWING_SPEED` (0 where none does)
+    from which it moves no faster than :data:`TAKEOVER_SPEED` to the next.
+
+    Before it, the demonstration swings the object in from out of view, metres away on a
+    real video's reconstruction; no layout on the table holds that path and no robot
+    follows it. In a layout the object waits, held, at its take-over pose until then
+    (:func:`apply_skill`), so the demonstrated layout reproduces the reconstruction from this
+    frame on only.
+    """
+    if not _carried_in(skill):
+        return 0
+    speed = np.linalg.norm(np.diff(skill.object_motion_pos, axis=0), axis=1) * skill.fps  # (N - 1,)
+    _, k_off = held_span(skill.grasped)
+    last = skill.num_frames - 1 if k_off is None else k_off - 1
+    fast = np.flatnonzero(speed[:last] > SWING_SPEED)
+    if len(fast) == 0:
+        return 0
+    k = int(fast[-1]) + 1
+    while k < last and speed[k] > TAKEOVER_SPEED:  # from rest, the robot takes it once it has slowed down
+        k += 1
+    return k
+
+
+def _carried_in(skill: Skill) -> bool:
+    """Whether the object is held from the first frame and moves at once (carried into view;
+    a skill carried to a layout waits still at its start instead)."""
+    return bool(is_held(skill.grasped[0]) and skill.num_frames > 1
+                and np.any(skill.object_motion_pos[1] != skill.object_motion_pos[0]))
+
+
+def _motion(skill: Skill) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The start pose (3,), (3, 3) and the motion relative to it (N, 3), (N, 3, 3) that a layout places.
+
+    The demonstrated ones; for an object carried into view (held from the first frame), the
+    object starts at its take-over pose (frame k of :func:`takeover`, often 0) turned onto a
+    face: a carried one (pick-ups, puts) onto its largest (its reconstructed tilt in the air
+    says nothing of how it rests, and would stand it on an edge or on end), a pushed or
+    pulled one onto the face nearest down (it was seen on the table), and
+    lowered onto the table (its bottom at z = 0), waits there until frame k, then follows the
+    demonstrated path, the lowering shrinking linearly to none at the release (or the last frame).
+    """
+    k = takeover(skill)
+    if not _carried_in(skill):
+        return skill.object_start_pos, skill.object_start_rot, skill.object_motion_pos, skill.object_motion_rot
+    start_rot = _on_a_face(skill.object_motion_rot[k] @ skill.object_start_rot, skill.object_size,
+                           largest=not _world_directed(skill.action))
+    start_pos = skill.object_start_pos + skill.object_motion_pos[k]
+    drop = start_pos[2] - support_extent(start_rot, skill.object_size, np.array([0.0, 0.0, 1.0]))
+    start_pos = start_pos - np.array([0.0, 0.0, drop])
+    _, k_off = skill.frames()
+    end = (skill.num_frames - 1) if k_off is None else k_off
+    motion_pos = skill.object_motion_pos - skill.object_motion_pos[k]
+    motion_pos[:k] = 0.0
+    frames = np.arange(skill.num_frames)
+    motion_pos[:, 2] += drop * np.clip((frames - k) / max(end - k, 1), 0.0, 1.0)
+    motion_rot = skill.object_motion_rot @ skill.object_motion_rot[k].T  # the object's turn since frame k
+    motion_rot[:k] = np.eye(3)
+    return start_pos, start_rot, motion_pos, motion_rot
+
+
+def apply_skill(skill: Skill, layout: Layout) -> Reconstruction:
+    """The reconstruction of the skill performed in ``layout`` (see the module doc).
+
+    Raises:
+        LayoutError: a static box count other than the skill's, boxes that overlap at
+            the start, or an object path that runs into a static box.
+    """
+    if len(layout.statics) != skill.num_static:
+        raise LayoutError(f"layout refused: it places {len(layout.statics)} static box(es), the "
+                          f"{skill.action} skill has {skill.num_static}")
+    static_pos, static_rot = _statics(skill, layout)
+    size = skill.object_size if layout.object_size is None else np.asarray(layout.object_size)
+    object_pos, object_rot = _object_path(skill, layout, size, static_pos, static_rot)
+    hand_pos, hand_rot = _hand_path(skill, object_pos, object_rot, size)
+    recon = Reconstruction(
+        fps=skill.fps, t=skill.t, hand_pos=hand_pos, hand_rot=hand_rot, grasp=skill.grasp, grasped=skill.grasped,
+        object_pos=object_pos, object_rot=object_rot, object_size=size, static_pos=static_pos,
+        static_rot=static_rot, static_size=skill.static_size, camera_K=skill.camera_K,
+        camera_elevation=skill.camera_elevation, camera_height=skill.camera_height, image_size=skill.image_size,
+        action=skill.action, loss=skill.loss)
+    _check_overlaps(recon)
+    return recon
+
+
+def _statics(skill: Skill, layout: Layout) -> tuple[np.ndarray, np.ndarray]:
+    """(K, 3) centres and (K, 3, 3) rotations of the static boxes in ``layout`` (heights kept)."""
+    pos = skill.static_pos.copy()
+    rot = skill.static_rot.copy()
+    for k, (x, y, yaw) in enumerate(layout.statics):
+        pos[k, :2] = x, y
+        rot[k] = rot_z(yaw - heading(skill.static_rot[k])) @ skill.static_rot[k]
+    return pos, rot
+
+
+def _object_path(skill: Skill, layout: Layout, size: np.ndarray, static_pos: np.ndarray,
+                 static_rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 3) centres and (N, 3, 3) rotations of the object in ``layout``.
+
+    The demonstrated motion from the new start, resting as deep as before (a resized
+    object keeps its bottom's heights); a ``put_*`` path bends, with the progress along
+    it, to end at the release relative to the static box; a carried object is lifted
+    over the static boxes in its way (:func:`_carry_lift`); an object put onto the box
+    rests on its top from the release on, at most :data:`GRAZE` deep in it
+    (:func:`_on_top_floor`).
+    """
+    x, y, yaw = layout.object
+    demo_pos, demo_rot, motion_pos, motion_rot = _motion(skill)
+    start_rot = rot_z(yaw - heading(demo_rot)) @ demo_rot
+    rot = motion_rot @ start_rot
+    start = np.array([x, y, demo_pos[2]])
+    up = np.array([0.0, 0.0, 1.0])
+    start[2] += support_extent(start_rot, size, up) - support_extent(demo_rot, skill.object_size, up)
+    pos = start + motion_pos
+    k_on, k_off = skill.frames()
+    if skill.action.startswith("put_") and k_off is not None and skill.num_static:
+        target = _release_point(skill, pos[k_off], rot[k_off], size, static_pos[0], static_rot[0])
+        pos += _progress(motion_pos, k_on, k_off)[:, None] * (target - pos[k_off])
+        if skill.action == "put_onto":
+            floor = _on_top_floor(pos[k_off:], rot[k_off:], size, static_pos[0], static_rot[0], skill.static_size[0])
+            pos[k_off:, 2] = np.maximum(pos[k_off:, 2], floor)
+    if not _world_directed(skill.action):
+        pos[:, 2] += _carry_lift(pos, rot, size, (static_pos, static_rot, skill.static_size), k_on, k_off, skill.fps)
+    return pos, rot
+
+
+def _release_point(skill: Skill, where: np.ndarray, rot: np.ndarray, size: np.ndarray, static_pos: np.ndarray,
+                   static_rot: np.ndarray) -> np.ndarray:
+    """(3,) the release centre relative to the static box: its height ``where[2]`` kept."""
+    offset = skill.release_offset.copy()
+    if skill.action == "put_onto":  # on the box: the centre inside its top, ONTO_INSET from the edges
+        local = static_rot.T @ offset
+        half = 0.5 * skill.static_size[0, :2]
+        limit = np.maximum(half - ONTO_INSET, 0.5 * half)
+        local[:2] = np.clip(local[:2], -limit, limit)
+        offset = static_rot @ local
+    else:  # beside the box: the gap between the world extents is kept
+        axis = int(np.argmax(np.abs(offset[:2])))
+        direction = np.eye(3)[axis]
+        reach = (support_extent(static_rot, skill.static_size[0], direction)
+                 + support_extent(rot, size, direction))
+        offset[axis] = math.copysign(reach + max(skill.release_gap, 0.0), offset[axis])
+    target = static_pos + offset
+    target[2] = where[2]
+    return target
+
+
+def _hand_path(skill: Skill, object_pos: np.ndarray, object_rot: np.ndarray,
+               size: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 3) hand tips and (N, 3, 3) hand frames relative to the object of the new layout."""
+    ref = _reference_frames(skill.grasped, *skill.frames())
+    ref_pos, ref_rot = object_pos[ref], object_rot[ref]
+    if not _world_directed(skill.action):
+        local = skill.hand_in_object_pos * (size / skill.object_size)
+        return ref_pos + np.einsum("nij,nj->ni", ref_rot, local), ref_rot @ skill.hand_in_object_rot
+    offset = skill.hand_in_object_pos.copy()
+    _, start_rot, motion_pos, motion_rot = _motion(skill)
+    direction = _travel_direction(motion_pos, *skill.frames())
+    if direction is not None:  # the hand stays on the face that faces the world direction
+        demo_rot = motion_rot[ref] @ start_rot
+        for k in range(skill.num_frames):
+            side = math.copysign(1.0, float(offset[k] @ direction))
+            moved = (support_extent(ref_rot[k], size, direction)
+                     - support_extent(demo_rot[k], skill.object_size, direction))
+            offset[k] += side * moved * direction
+    return ref_pos + offset, skill.hand_in_object_rot.copy()
+
+
+def _on_a_face(rot: np.ndarray, size: np.ndarray, largest: bool) -> np.ndarray:
+    """(3, 3) the rotation ``rot`` turned so that a cuboid of edge lengths ``size`` rests on a
+    face: with ``largest``, its largest (the shortest axis made vertical), else the one nearest
+    down (the axis nearest the vertical made vertical); the side that axis pointed to kept up,
+    the more horizontal of the other two keeping its horizontal direction."""
+    i = int(np.argmin(size)) if largest else int(np.argmax(np.abs(rot[2])))
+    others = [a for a in range(3) if a != i]
+    j = max(others, key=lambda a: float(np.hypot(rot[0, a], rot[1, a])))
+    out = np.empty((3, 3))
+    out[:, i] = (0.0, 0.0, 1.0 if rot[2, i] >= 0.0 else -1.0)
+    col = np.array([rot[0, j], rot[1, j], 0.0])
+    out[:, j] = col / np.linalg.norm(col)
+    k = 3 - i - j
+    out[:, k] = np.cross(out[:, i], out[:, j]) if (i + 1) % 3 == j else np.cross(out[:, j], out[:, i])
+    return out
+
+
+def _world_directed(action: str) -> bool:
+    """Whether the action keeps its world direction (pulls and pushes)."""
+    return action.startswith(("pull_", "push_"))
+
+
+def _reference_frames(grasped: np.ndarray, k_on: int, k_off: int | None) -> np.ndarray:
+    """(N,) the object frame each hand sample is relative to: the onset before it, the release after it."""
+    ref = np.arange(len(grasped))
+    ref[:k_on] = k_on
+    if k_off is not None:
+        ref[k_off:] = k_off
+    return ref
+
+
+def _travel_direction(motion_pos: np.ndarray, k_on: int, k_off: int | None) -> np.ndarray | None:
+    """(3,) the unit horizontal direction the object travels while held; None below :data:`MIN_TRAVEL`."""
+    travel = motion_pos[k_off if k_off is not None else -1] - motion_pos[k_on]
+    travel[2] = 0.0
+    length = float(np.linalg.norm(travel))
+    return travel / length if length >= MIN_TRAVEL else None
+
+
+def _progress(motion_pos: np.ndarray, k_on: int, k_off: int) -> np.ndarray:
+    """(N,) 0 until the onset, the fraction of the held path travelled, 1 from the release.
+
+    By path length; by time where the object barely moves.
+    """
+    steps = np.linalg.norm(np.diff(motion_pos[k_on:k_off + 1], axis=0), axis=1)
+    if steps.sum() < 1e-6:
+        steps = np.ones_like(steps)
+    progress = np.zeros(len(motion_pos))
+    progress[k_on + 1:k_off + 1] = np.cumsum(steps) / steps.sum()
+    progress[k_off:] = 1.0
+    return progress
+
+
+def _carry_lift(pos: np.ndarray, rot: np.ndarray, size: np.ndarray, statics: tuple[np.ndarray, ...], k_on: int,
+                k_off: int | None, fps: float) -> np.ndarray:
+    """(N,) [m] how far to raise the object (centres ``pos`` (N, 3), rotations ``rot`` (N, 3, 3))
+    in its held frames so that it passes :data:`CARRY_CLEARANCE` above each static box
+    (``statics``: (K, 3) centres, (K, 3, 3) rotations, (K, 3) sizes) it would run into deeper
+    than :data:`GRAZE`; raised and lowered at :data:`LIFT_RATE`, 0 outside the held frames."""
+    end = len(pos) if k_off is None else k_off
+    up = np.array([0.0, 0.0, 1.0])
+    need = np.zeros(len(pos))
+    for f in range(k_on, end):
+        for static in zip(*statics):
+            if overlap_depth(pos[f], rot[f], size, *static) > GRAZE:
+                top = static[0][2] + support_extent(static[1], static[2], up)
+                need[f] = max(need[f], top + CARRY_CLEARANCE - (pos[f, 2] - support_extent(rot[f], size, up)))
+    if not need.any():
+        return need
+    frames = np.arange(len(pos))
+    lift = np.max(need[None, :] - LIFT_RATE / fps * np.abs(frames[:, None] - frames[None, :]), axis=1).clip(min=0.0)
+    lift[:k_on] = lift[end:] = 0.0
+    return lift
+
+
+def _check_overlaps(recon: Reconstruction) -> None:
+    """Refuse boxes that interpenetrate: static boxes with each other, the object with one along its path."""
+    statics = list(zip(recon.static_pos, recon.static_rot, recon.static_size))
+    for i in range(len(statics)):
+        for j in range(i + 1, len(statics)):
+            depth = overlap_depth(*statics[i], *statics[j])
+            if depth > OVERLAP_TOLERANCE:
+                raise LayoutError(f"layout refused: static boxes {i} and {j} overlap ({100 * depth:.1f} cm deep)")
+    for k, static in enumerate(statics):
+        for f in range(recon.num_frames):
+            depth = overlap_depth(recon.object_pos[f], recon.object_rot[f], recon.object_size, *static)
+            if depth > OVERLAP_TOLERANCE:
+                where = "start" if f == 0 else f"path at t = {recon.t[f]:.2f} s"
+                raise LayoutError(f"layout refused: the object's {where} overlaps static box {k} "
+                                  f"({100 * depth:.1f} cm deep)")
+
+
+def skill_from(recon: Reconstruction) -> Skill:
+    """The skill a reconstruction teaches (see the module doc).
+
+    Raises:
+        SkillError: an unknown action, or a hand that never holds or touches the object.
+    """
+    if not str(recon.action):
+        raise SkillError("action: the reconstruction's action is unknown; a skill needs one")
+    action = check_action(str(recon.action))
+    span = held_span(recon.grasped)
+    if span is None:
+        raise SkillError(f"grasped: {NEVER_HELD}")
+    k_on, k_off = span
+    ref = _reference_frames(recon.grasped, k_on, k_off)
+    start_pos, start_rot = recon.object_pos[0], recon.object_rot[0]
+    ref_pos, ref_rot = recon.object_pos[ref], recon.object_rot[ref]
+    if _world_directed(action):
+        hand_pos, hand_rot = recon.hand_pos - ref_pos, recon.hand_rot.copy()
+    else:
+        hand_pos = np.einsum("nji,nj->ni", ref_rot, recon.hand_pos - ref_pos)
+        hand_rot = np.swapaxes(ref_rot, 1, 2) @ recon.hand_rot
+    offset, gap = np.zeros(3), 0.0
+    if action.startswith("put_") and recon.num_static and k_off is not None:
+        offset = recon.object_pos[k_off] - recon.static_pos[0]
+        axis = np.eye(3)[int(np.argmax(np.abs(offset[:2])))]
+        gap = abs(float(offset @ axis)) - (support_extent(recon.static_rot[0], recon.static_size[0], axis)
+                                           + support_extent(recon.object_rot[k_off], recon.object_size, axis))
+    fps = float(recon.fps)
+    return Skill(
+        action=action, fps=fps, t=recon.t.copy(), grasp=recon.grasp.copy(), grasped=recon.grasped.copy(),
+        onset=k_on / fps, release=math.nan if k_off is None else k_off / fps, object_size=recon.object_size.copy(),
+        object_start_pos=start_pos.copy(), object_start_rot=start_rot.copy(),
+        object_motion_pos=recon.object_pos - start_pos, object_motion_rot=recon.object_rot @ start_rot.T,
+        hand_in_object_pos=hand_pos, hand_in_object_rot=hand_rot, release_offset=offset, release_gap=gap,
+        static_pos=recon.static_pos.copy(), static_rot=recon.static_rot.copy(), static_size=recon.static_size.copy(),
+        camera_K=recon.camera_K.copy(), camera_elevation=float(recon.camera_elevation),
+        camera_height=float(recon.camera_height), image_size=recon.image_size.copy(), loss=float(recon.loss))
