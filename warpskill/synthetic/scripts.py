@@ -99,58 +99,12 @@ def make_script(action: str, rng: np.random.Generator, duration: float, variant:
         size = np.array(variant.object_size)
     yaw = u(-0.3, 0.3)
     centre = np.array([u(-0.08, 0.08), u(0.55, 0.7), size[2] / 2])
-    static_pos = np.zeros((0, 3))
-    static_size = np.zeros((0, 3))
-    static_yaw = np.zeros(0)
-    if action.startswith("put_"):
-        s_size = np.array([u(0.10, 0.18), u(0.10, 0.16), u(0.04, 0.12) if action == "put_onto" else u(0.08, 0.15)])
-        side = rng.choice([-1.0, 1.0])
-        static_pos = np.array([[centre[0] - side * 0.1, centre[1] + u(0.0, 0.05), s_size[2] / 2]])
-        static_size = s_size[None]
-        half_range = variant.static_yaw if variant is not None else Variant.static_yaw
-        static_yaw = np.array([u(-half_range, half_range)])
-        centre[0] += side * 0.12
-        centre[1] -= 0.05
-        if variant is not None and variant.narrow_static:
-            (low, high), depth = NARROW_STATIC
-            static_size = np.array([[u(low, high) * size[0], u(*depth), s_size[2]]])
-        if variant is not None and variant.wide_static:
-            # A wide static box, cut by the frame: it extends away from the object.
-            grow = variant.wide_static - s_size[0]
-            static_size = static_size.copy()
-            static_size[0, 0] = variant.wide_static
-            static_pos = static_pos.copy()
-            static_pos[0, 0] -= side * 0.5 * grow
-
-    # Grasp points: the side facing the motion's start for push/pull, the top otherwise.
-    t_on, t_off, t_end = 0.3 * duration, 0.72 * duration, duration
-    direction = 1.0 if action.endswith("left_to_right") else -1.0
-    if action.startswith("pull_") or action.startswith("push_"):
-        pushing = action.startswith("push_")
-        # Pulling drags the object from the side it moves towards; pushing presses from behind.
-        face = -direction if pushing else direction
-        axis = np.array([face * 1.0, u(-0.5, -0.2), u(0.5, 0.9)])
-        grasp = centre + np.array([face * (size[0] / 2 - TIP_DEPTH), 0.0, u(-0.2, 0.2) * size[2]])
-        path = [grasp + np.array([direction * u(0.15, 0.25), 0.0, 0.0])]
+    static_pos, static_size, static_yaw = _static_box(action, centre, size, variant, rng)
+    t_on, t_end = 0.3 * duration, duration
+    t_off = None if action == "pick_up" else 0.72 * duration
+    if action.startswith(("pull_", "push_")):
         yaw = 0.0
-    else:
-        axis = np.array([u(-0.4, 0.4), u(-0.7, -0.3), 1.0])
-        grasp = centre + np.array([0.0, 0.0, size[2] / 2 - TIP_DEPTH])
-        lift = grasp + np.array([0.0, 0.0, u(0.12, 0.18)])
-        if action == "pick_up":
-            path = [lift]
-            t_off = None
-            ending = variant.ending if variant is not None else None
-            if ending == "towards camera":  # held up and brought towards the camera: its box grows
-                path = [lift, lift + np.array([0.0, -u(0.35, 0.45), u(0.0, 0.06)])]
-            elif ending == "out of view":  # lifted out of the top of the view
-                path = [lift + np.array([0.0, 0.0, 0.25]), lift + np.array([0.0, u(0.0, 0.1), u(0.45, 0.6)])]
-        else:
-            target = _put_target(action, static_pos[0], static_size[0], size, rng)
-            above = target + np.array([0.0, 0.0, 0.08])
-            lowered = target + np.array([0.0, 0.0, size[2] / 2 - TIP_DEPTH + 0.004])
-            path = [lift, np.array([above[0], above[1], lift[2]]), lowered]
-    axis = axis / np.linalg.norm(axis)
+    axis, grasp, path = _hand_path(action, centre, size, static_pos, static_size, variant, rng)
     reach = 0.3 if variant is not None and variant.far_start else 0.15
     start = grasp + reach * axis + np.array([0.0, 0.0, 0.05])
     waypoints = [(0.0, start), (t_on - 0.05 * duration, grasp), (t_on + 0.04 * duration, grasp)]
@@ -182,6 +136,66 @@ def make_script(action: str, rng: np.random.Generator, duration: float, variant:
         camera_elevation=u(0.5, 0.75),
         phase_end=phase_end,
     )
+
+
+def _static_box(action: str, centre: np.ndarray, size: np.ndarray, variant: Variant | None,
+                rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(K, 3) centres, (K, 3) sizes and (K,) yaws of a put action's static box (K = 1; else K = 0);
+    moves the object's ``centre`` (3,) beside it, in place."""
+    u = rng.uniform
+    if not action.startswith("put_"):
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)
+    s_size = np.array([u(0.10, 0.18), u(0.10, 0.16), u(0.04, 0.12) if action == "put_onto" else u(0.08, 0.15)])
+    side = rng.choice([-1.0, 1.0])
+    static_pos = np.array([[centre[0] - side * 0.1, centre[1] + u(0.0, 0.05), s_size[2] / 2]])
+    static_size = s_size[None]
+    half_range = variant.static_yaw if variant is not None else Variant.static_yaw
+    static_yaw = np.array([u(-half_range, half_range)])
+    centre[0] += side * 0.12
+    centre[1] -= 0.05
+    if variant is not None and variant.narrow_static:
+        (low, high), depth = NARROW_STATIC
+        static_size = np.array([[u(low, high) * size[0], u(*depth), s_size[2]]])
+    if variant is not None and variant.wide_static:
+        # A wide static box, cut by the frame: it extends away from the object.
+        grow = variant.wide_static - s_size[0]
+        static_size = static_size.copy()
+        static_size[0, 0] = variant.wide_static
+        static_pos = static_pos.copy()
+        static_pos[0, 0] -= side * 0.5 * grow
+    return static_pos, static_size, static_yaw
+
+
+def _hand_path(action: str, centre: np.ndarray, size: np.ndarray, static_pos: np.ndarray, static_size: np.ndarray,
+               variant: Variant | None, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """The hand's unit axis (3,), its grasp point (3,) and the held path's waypoints [(3,)]: the
+    side facing the motion's start for push/pull, the top otherwise."""
+    u = rng.uniform
+    direction = 1.0 if action.endswith("left_to_right") else -1.0
+    if action.startswith("pull_") or action.startswith("push_"):
+        pushing = action.startswith("push_")
+        # Pulling drags the object from the side it moves towards; pushing presses from behind.
+        face = -direction if pushing else direction
+        axis = np.array([face * 1.0, u(-0.5, -0.2), u(0.5, 0.9)])
+        grasp = centre + np.array([face * (size[0] / 2 - TIP_DEPTH), 0.0, u(-0.2, 0.2) * size[2]])
+        path = [grasp + np.array([direction * u(0.15, 0.25), 0.0, 0.0])]
+    else:
+        axis = np.array([u(-0.4, 0.4), u(-0.7, -0.3), 1.0])
+        grasp = centre + np.array([0.0, 0.0, size[2] / 2 - TIP_DEPTH])
+        lift = grasp + np.array([0.0, 0.0, u(0.12, 0.18)])
+        if action == "pick_up":
+            path = [lift]
+            ending = variant.ending if variant is not None else None
+            if ending == "towards camera":  # held up and brought towards the camera: its box grows
+                path = [lift, lift + np.array([0.0, -u(0.35, 0.45), u(0.0, 0.06)])]
+            elif ending == "out of view":  # lifted out of the top of the view
+                path = [lift + np.array([0.0, 0.0, 0.25]), lift + np.array([0.0, u(0.0, 0.1), u(0.45, 0.6)])]
+        else:
+            target = _put_target(action, static_pos[0], static_size[0], size, rng)
+            above = target + np.array([0.0, 0.0, 0.08])
+            lowered = target + np.array([0.0, 0.0, size[2] / 2 - TIP_DEPTH + 0.004])
+            path = [lift, np.array([above[0], above[1], lift[2]]), lowered]
+    return axis / np.linalg.norm(axis), grasp, path
 
 
 def _put_target(action: str, s_pos: np.ndarray, s_size: np.ndarray, size: np.ndarray, rng) -> np.ndarray:
