@@ -21,6 +21,7 @@ from warpskill.geometry import is_held
 from warpskill.synthetic.scripts import (
     TURNED_STATIC_YAW,
     Script,
+    Variant,
     draw_variant,
     flat_long_size,
     make_script,
@@ -148,15 +149,7 @@ def make_demonstration(
     variant_rng = np.random.default_rng([seed, ACTIONS.index(action), 1])
     intrinsics = Intrinsics.default(*image_size)
     for _ in range(50):
-        variant = draw_variant(action, seed, variant_rng) if boxes else None
-        if "tall_thin" in chosen:
-            variant = replace(variant, object_size=tall_thin_size(variant_rng))
-        if scenarios == "narrow":
-            variant = replace(variant, narrow_static=True, wide_static=0.0)
-        if scenarios == "turned":
-            variant = replace(variant, static_yaw=TURNED_STATIC_YAW)
-        if scenarios == "flat":
-            variant = replace(variant, object_size=flat_long_size(variant_rng))
+        variant = _variant(action, seed, scenarios, chosen, variant_rng) if boxes else None
         script = make_script(action, rng, duration, variant)
         truth = _simulate(script, fps, duration)
         masks = _render(truth, intrinsics)
@@ -178,6 +171,22 @@ def make_demonstration(
     return Demonstration.from_arrays(
         hand, obj, contact, fps, static_mask=static, camera_K=intrinsics.K, action=action, truth=truth
     )
+
+
+def _variant(action: str, seed: int, scenarios: str, chosen: tuple[str, ...],
+             rng: np.random.Generator) -> Variant:
+    """The situations of a ``"boxes"`` scene: drawn (:func:`draw_variant`), then those of ``scenarios``
+    and of the real videos' ``chosen`` (:func:`real_scenarios`)."""
+    variant = draw_variant(action, seed, rng)
+    if "tall_thin" in chosen:
+        variant = replace(variant, object_size=tall_thin_size(rng))
+    if scenarios == "narrow":
+        variant = replace(variant, narrow_static=True, wide_static=0.0)
+    if scenarios == "turned":
+        variant = replace(variant, static_yaw=TURNED_STATIC_YAW)
+    if scenarios == "flat":
+        variant = replace(variant, object_size=flat_long_size(rng))
+    return variant
 
 
 def _annotated(boxes, contact, chosen, rng, fps: float, action: str, truth: dict) -> Demonstration:
