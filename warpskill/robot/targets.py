@@ -82,6 +82,14 @@ class Targets:
     grasp_time: float
     release_time: float
 
+    def add(self, tau: float, T: np.ndarray, grip: float) -> None:
+        """Append a sample one planner step (:data:`~warpskill.robot.planner.DT`) after the last:
+        reconstruction time ``tau`` [s], TCP target ``T`` (4, 4), gripper opening ``grip`` [m]."""
+        self.times.append(len(self.times) * DT)
+        self.taus.append(tau)
+        self.targets.append(T)
+        self.grips.append(grip)
+
 
 def pose_matrix(pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
     """The (4, 4) pose of rotation ``rot`` at ``pos``."""
@@ -242,18 +250,49 @@ def plan_targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int
     close_ramp = max(opening / (2 * FINGER_SPEED), DT)
     out = Targets([], [], [], [], 0, 0.0, 0.0, math.nan)
 
-    def add(tau: float, T: np.ndarray, grip: float) -> None:
-        out.times.append(len(out.times) * DT)
-        out.taus.append(tau)
-        out.targets.append(T)
-        out.grips.append(grip)
-
     def approach_target(tau: float) -> np.ndarray:  # the demonstrated path, until the pre-grasp
         T = G.copy()
         T[:3, 3] = _interp_path(recon.hand_pos, recon.t, float(np.clip(tau, t_join, t_pre))) + path_shift
         return T
 
-    join = approach_target(t_join)
+    _lead_in(out, recon, approach_target(t_join), home_tcp, opening)
+    out.start_time = len(out.times) * DT
+    for tau in np.arange(0.0, t_pre, step):
+        out.add(float(tau), approach_target(float(tau)), opening)
+    # The straight move onto the grasp takes APPROACH_TIME at least, also where the demonstration
+    # leaves less (a contact from the first frames): the reconstruction's time then runs slower.
+    n_app = max(int(round(APPROACH_TIME / DT)), int(round(app_time / step)))
+    for i in range(n_app):
+        s = min_jerk(np.array((i + 1) / n_app))
+        T = G.copy()
+        T[:3, 3] = (1 - s) * pregrasp[:3, 3] + s * G_down[:3, 3]
+        out.add(t_pre + (t_on - t_pre) * i / n_app, T, opening)
+    out.grasp_time = len(out.times) * DT
+    n_close = int(round(CLOSE_TIME / DT))
+    for i in range(n_close):
+        T = G.copy()
+        T[:3, 3] = G_down[:3, 3] + min_jerk(np.array((i + 1) / n_close)) * (G[:3, 3] - G_down[:3, 3])
+        out.add(t_on, T, opening * max(0.0, 1.0 - (i * DT) / close_ramp))
+
+    def hold_target(tau: float) -> np.ndarray:
+        return hold_pose(recon, scene, pose, k_on, k_off, tau, release_shift)
+
+    hold_end = t_off if t_off is not None else t_end
+    for tau in np.arange(t_on, hold_end, step):
+        out.add(float(tau), hold_target(float(tau)), 0.0)
+    if t_off is None:
+        last = hold_target(t_end)
+        for _ in range(int(round(SETTLE / DT))):
+            out.add(t_end, last, 0.0)
+        return out
+    out.release_time = len(out.times) * DT
+    _release(out, hold_target(t_off), approach, t_off, t_end, step, opening, close_ramp)
+    return out
+
+
+def _lead_in(out: Targets, recon: Reconstruction, join: np.ndarray, home_tcp: np.ndarray, opening: float) -> None:
+    """Append the lead-in: from the home TCP pose ``home_tcp`` (4, 4) up over the object and onto
+    ``join`` (4, 4), the demonstrated path's first followed pose, in :data:`LEAD_IN`."""
     above = join.copy()
     above[2, 3] = max(join[2, 3] + LEAD_RISE, min(home_tcp[2, 3], join[2, 3] + 2 * LEAD_RISE))
     object_top = float(cuboid_corners(recon.object_pos[0], recon.object_rot[0], recon.object_size)[:, 2].max())
@@ -275,44 +314,18 @@ def plan_targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int
         elif i < n_move:
             s = float(min_jerk(np.array((i + 1 - n_up) / (n_move - n_up))))
             T[:3, 3] = (1 - s) * above[:3, 3] + s * join[:3, 3]
-        add(0.0, T, opening)
+        out.add(0.0, T, opening)
     out.lead_in = n_lead
-    out.start_time = len(out.times) * DT
-    for tau in np.arange(0.0, t_pre, step):
-        add(float(tau), approach_target(float(tau)), opening)
-    # The straight move onto the grasp takes APPROACH_TIME at least, also where the demonstration
-    # leaves less (a contact from the first frames): the reconstruction's time then runs slower.
-    n_app = max(int(round(APPROACH_TIME / DT)), int(round(app_time / step)))
-    for i in range(n_app):
-        s = min_jerk(np.array((i + 1) / n_app))
-        T = G.copy()
-        T[:3, 3] = (1 - s) * pregrasp[:3, 3] + s * G_down[:3, 3]
-        add(t_pre + (t_on - t_pre) * i / n_app, T, opening)
-    out.grasp_time = len(out.times) * DT
-    n_close = int(round(CLOSE_TIME / DT))
-    for i in range(n_close):
-        T = G.copy()
-        T[:3, 3] = G_down[:3, 3] + min_jerk(np.array((i + 1) / n_close)) * (G[:3, 3] - G_down[:3, 3])
-        add(t_on, T, opening * max(0.0, 1.0 - (i * DT) / close_ramp))
 
-    def hold_target(tau: float) -> np.ndarray:
-        return hold_pose(recon, scene, pose, k_on, k_off, tau, release_shift)
 
-    hold_end = t_off if t_off is not None else t_end
-    for tau in np.arange(t_on, hold_end, step):
-        add(float(tau), hold_target(float(tau)), 0.0)
-    if t_off is None:
-        last = hold_target(t_end)
-        for _ in range(int(round(SETTLE / DT))):
-            add(t_end, last, 0.0)
-        return out
-    out.release_time = len(out.times) * DT
-    placed = hold_target(t_off)
+def _release(out: Targets, placed: np.ndarray, approach: np.ndarray, t_off: float, t_end: float, step: float,
+             opening: float, close_ramp: float) -> None:
+    """Append the release at ``placed`` (4, 4) (the gripper opens) and the retreat along ``approach`` (3,),
+    the grasp's approach direction."""
     for i in range(int(round(OPEN_TIME / DT))):
-        add(t_off, placed, opening * min(1.0, (i * DT) / close_ramp))
+        out.add(t_off, placed, opening * min(1.0, (i * DT) / close_ramp))
     for tau in np.arange(t_off, t_end + SETTLE, step):
         s = min_jerk(np.array((tau - t_off) / RETREAT_TIME))
         T = placed.copy()
         T[:3, 3] -= s * RETREAT * approach
-        add(float(min(tau, t_end)), T, opening)
-    return out
+        out.add(float(min(tau, t_end)), T, opening)
