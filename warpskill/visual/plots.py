@@ -42,10 +42,27 @@ def top_view_figure(recon: Reconstruction) -> Figure:
     plot_width = float(np.clip(plot_height * (hi[0] - lo[0]) / (hi[1] - lo[1]), 3.0, 9.0))
     fig = figure(plot_width + 3.3, plot_height + 0.9)
     ax = fig.subplots()
-    handles = []
-    static_rgb = rgb(STATIC_COLOR)
-    object_rgb = rgb(OBJECT_COLOR)
+    handles = _draw_statics(ax, recon, statics) + _draw_object(ax, recon, corners) + _draw_hand(ax, recon)
+    handles += _draw_camera(ax, recon, lo, hi)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
+    ax.grid(True, lw=0.4, alpha=0.6)
+    ax.set_xlabel("x [m] (image right)")
+    ax.set_ylabel("y [m] (away from the camera)")
+    ax.set_title(
+        f"Top view{_action_suffix(recon)}\n"
+        f"camera height {float(recon.camera_height):.3f} m, "
+        f"elevation {math.degrees(float(recon.camera_elevation)):.1f} deg",
+        fontsize=10,
+    )
+    ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
+    return fig
 
+
+def _draw_statics(ax, recon: Reconstruction, statics: np.ndarray) -> list:
+    """Draw the static boxes' footprints (corners ``statics`` (K, 8, 3) [m]); their legend handles."""
+    static_rgb = rgb(STATIC_COLOR)
     for k, box in enumerate(statics):
         hull = _hull(box[:, :2])
         ax.add_patch(Polygon(hull, closed=True, facecolor=(*static_rgb, 0.3), edgecolor=static_rgb, lw=1.5))
@@ -54,34 +71,48 @@ def top_view_figure(recon: Reconstruction) -> Figure:
             f"static {k}", low, xytext=(0, -3), textcoords="offset points", ha="center", va="top", fontsize=8,
             color=static_rgb,
         )
-    if recon.num_static:
-        handles.append(Patch(facecolor=(*static_rgb, 0.3), edgecolor=static_rgb, label="static object"))
+    if not recon.num_static:
+        return []
+    return [Patch(facecolor=(*static_rgb, 0.3), edgecolor=static_rgb, label="static object")]
 
+
+def _draw_object(ax, recon: Reconstruction, corners: np.ndarray) -> list:
+    """Draw the object's footprint at the first and last frame (corners ``corners`` (F, 8, 3) [m]) and
+    its centre path; their legend handles."""
+    object_rgb = rgb(OBJECT_COLOR)
     first, last = _hull(corners[0, :, :2]), _hull(corners[-1, :, :2])
     ax.add_patch(Polygon(first, closed=True, fill=False, edgecolor=object_rgb, lw=1.5, ls="--"))
     ax.add_patch(Polygon(last, closed=True, facecolor=(*object_rgb, 0.35), edgecolor=object_rgb, lw=1.5))
     centre = recon.object_pos[:, :2]
     ax.plot(centre[:, 0], centre[:, 1], "-", color=object_rgb, lw=1.5, marker=".", ms=3)
-    handles += [
+    return [
         Patch(fill=False, edgecolor=object_rgb, ls="--", label="object, first frame"),
         Patch(facecolor=(*object_rgb, 0.35), edgecolor=object_rgb, label="object, last frame"),
         Line2D([], [], color=object_rgb, marker=".", ms=3, label="object centre path"),
     ]
 
+
+def _draw_hand(ax, recon: Reconstruction) -> list:
+    """Draw the hand tip's path coloured by ``grasped``, its start and end; their legend handles."""
+    tip = recon.hand_pos[:, :2]
     held = np.clip(recon.grasped, 0.0, 1.0)
     segments = np.stack([tip[:-1], tip[1:]], axis=1)
     ax.add_collection(LineCollection(segments, colors=_GRASP_CMAP(0.5 * (held[:-1] + held[1:])), lw=2.5))
     ax.scatter(tip[:, 0], tip[:, 1], c=_GRASP_CMAP(held), s=8, zorder=3)
     ax.plot(*tip[0], "o", mfc="none", mec="k", ms=8, zorder=4)
     ax.plot(*tip[-1], "s", mfc="none", mec="k", ms=8, zorder=4)
-    handles += [
+    return [
         Line2D([], [], color=_GRASP_CMAP(0.0), lw=2.5, label="hand tip, free"),
         Line2D([], [], color=_GRASP_CMAP(1.0), lw=2.5, label="hand tip, grasped"),
         Line2D([], [], ls="none", marker="o", mfc="none", mec="k", label="hand tip start"),
         Line2D([], [], ls="none", marker="s", mfc="none", mec="k", label="hand tip end"),
     ]
 
-    # The ground the camera sees, clipped by the limits.
+
+def _draw_camera(ax, recon: Reconstruction, lo: np.ndarray, hi: np.ndarray) -> list:
+    """Draw the camera at the origin, its view direction and the ground it sees, clipped by the plot's
+    limits ``lo``, ``hi`` (2,) [m]; their legend handles."""
+    handles = []
     view = _ground_footprint(recon, far=2.0 * float(np.hypot(*(hi - lo))))
     ax.add_patch(Polygon(view, closed=True, facecolor="0.92", edgecolor="0.6", lw=1.0, zorder=0))
     height, elevation = float(recon.camera_height), float(recon.camera_elevation)
@@ -91,24 +122,10 @@ def top_view_figure(recon: Reconstruction) -> Figure:
     if elevation > 1e-3:
         ax.plot(0.0, height / math.tan(elevation), marker="x", color="k", ms=7, ls="none")
         handles.append(Line2D([], [], ls="none", marker="x", color="k", label="optical axis meets ground"))
-    handles += [
+    return handles + [
         Line2D([], [], ls="none", marker="^", color="k", ms=8, label="camera (arrow: view direction)"),
         Patch(facecolor="0.92", edgecolor="0.6", label="ground seen by the camera"),
     ]
-
-    ax.set_xlim(lo[0], hi[0])
-    ax.set_ylim(lo[1], hi[1])
-    ax.set_aspect("equal")
-    ax.grid(True, lw=0.4, alpha=0.6)
-    ax.set_xlabel("x [m] (image right)")
-    ax.set_ylabel("y [m] (away from the camera)")
-    ax.set_title(
-        f"Top view{_action_suffix(recon)}\n"
-        f"camera height {height:.3f} m, elevation {math.degrees(elevation):.1f} deg",
-        fontsize=10,
-    )
-    ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
-    return fig
 
 
 def _ground_footprint(recon: Reconstruction, *, far: float, samples: int = 32) -> np.ndarray:
