@@ -200,17 +200,7 @@ def optimize_folder(
     device = options.device
     if not (device is None or device == "cpu" or str(device).startswith("cuda")):
         raise ValueError(f"device {device!r}: warpskill runs on 'cpu' or 'cuda'")
-    for name in demos:
-        if not name or name.startswith(".") or os.sep in name or (os.altsep and os.altsep in name):
-            raise ValueError(f"demonstration name {name!r} is not a plain folder name")
-    outcomes: dict[str, Outcome] = {}
-    pending: list[tuple[str, Source, Path]] = []
-    for name, source in demos.items():
-        folder = out / name
-        if ResultsFolder(folder).finished_reconstruction(options.to_json()) is not None:
-            outcomes[name] = Outcome(name, "done before", folder)
-        else:
-            pending.append((name, source, folder))
+    outcomes, pending = _done_before(demos, out, options)
     gpu = str(device or "cpu").startswith("cuda")
     if not pending:
         return Summary(outcomes, workers or 0, time.perf_counter() - start)
@@ -232,6 +222,28 @@ def optimize_folder(
         outcomes.update(_run(ray, task, groups, options, postprocess, out, slots, len(demos), len(outcomes), progress))
     ordered = {name: outcomes[name] for name in demos}
     return Summary(ordered, slots, time.perf_counter() - start, startup, joined)
+
+
+def _done_before(demos: Mapping[str, Source], out: Path,
+                 options: OptimizeOptions) -> tuple[dict[str, Outcome], list[tuple[str, Source, Path]]]:
+    """The demonstrations whose folder under ``out`` holds a finished reconstruction with ``options``
+    (their outcomes), and the others as (name, source, folder), in ``demos``' order.
+
+    Raises:
+        ValueError: a name is not a plain folder name.
+    """
+    for name in demos:
+        if not name or name.startswith(".") or os.sep in name or (os.altsep and os.altsep in name):
+            raise ValueError(f"demonstration name {name!r} is not a plain folder name")
+    outcomes: dict[str, Outcome] = {}
+    pending: list[tuple[str, Source, Path]] = []
+    for name, source in demos.items():
+        folder = out / name
+        if ResultsFolder(folder).finished_reconstruction(options.to_json()) is not None:
+            outcomes[name] = Outcome(name, "done before", folder)
+        else:
+            pending.append((name, source, folder))
+    return outcomes, pending
 
 
 def _run(ray, task, groups, options: OptimizeOptions, postprocess: Postprocess | None, out: Path, slots: int,
