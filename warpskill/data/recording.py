@@ -125,28 +125,57 @@ def read_recording(
             signal that is never on.
         FileNotFoundError: a file or folder does not exist.
     """
-    given = {name: value for name, value in zip(SOURCES, (masks, labels, polygons, boxes)) if value is not None}
+    source, where = _mask_source(dict(zip(SOURCES, (masks, labels, polygons, boxes))), contact=contact,
+                                 detections=detections, video_id=video_id, frame=frame, action=action)
+    frames, fps = _frames(video, fps)
+    camera_K = _camera_matrix(intrinsics)
+    hand, obj, static, found, noun = _masks(source, where, video, frames, frame=frame, video_id=video_id, action=action)
+    signal = _contact(contact, detections, found, hand, obj, video, where)
+    try:
+        demo = Demonstration.from_arrays(
+            hand, obj, signal, fps, static_mask=np.stack(static) if static else None, camera_K=camera_K, action=action,
+            object_noun=noun,
+        )
+    except DemonstrationError as exc:
+        raise DemonstrationError(f"{contact if contact is not None else where}: {exc}") from None
+    return Recording(demo, frames, None if found is None else found.landmarks)
+
+
+def _mask_source(sources: dict, *, contact, detections, video_id, frame, action: str) -> tuple[str, object]:
+    """The one mask source given among ``sources`` (name -> path or None), as (name, path); the
+    options checked against it."""
+    given = {name: value for name, value in sources.items() if value is not None}
     if len(given) != 1:
         names = ", ".join(given) if given else "none"
         raise DemonstrationError(f"give exactly one mask source of {', '.join(SOURCES)} (got {names})")
     if contact is not None and detections is not None:
         raise DemonstrationError("give a contact file or a detections file, not both")
-    if video_id is not None and boxes is None:
+    if video_id is not None and "boxes" not in given:
         raise DemonstrationError("video_id: only with boxes")
-    if frame is not None and polygons is None:
+    if frame is not None and "polygons" not in given:
         raise DemonstrationError("frame: only with polygons")
     try:
         check_action(action)
     except ValueError as exc:
         raise DemonstrationError(f"action: {exc}") from None
+    [(source, where)] = given.items()
+    return source, where
+
+
+def _frames(video, fps: float | None) -> tuple[np.ndarray, float]:
+    """The video's frames (N, H, W, 3) and its frame rate [1/s]: ``fps``, else the video's own."""
     frames, video_fps = read_video(video)
     if fps is None:
         fps = IMAGE_SEQUENCE_FPS if is_image_sequence(video) else video_fps
     if not fps or not np.isfinite(fps) or fps <= 0:
         raise DemonstrationError(f"{video}: declares no frame rate; give fps" if not fps else f"fps: must be > 0, got {fps}")
-    camera_K = _camera_matrix(intrinsics)
+    return frames, fps
+
+
+def _masks(source: str, where, video, frames: np.ndarray, *, frame: int | None, video_id: str | None, action: str):
+    """Hand (N, H, W), object (N, H, W) and static [(N, H, W)] masks of the mask source, cleaned, the
+    found hand (or None) and the object's noun (or None)."""
     n, h, w = frames.shape[:3]
-    [(source, where)] = given.items()
     found, noun = None, None
     if source in ("masks", "labels"):
         if source == "masks" and not (Path(where) / "hand").is_dir():
@@ -175,25 +204,24 @@ def read_recording(
     for name, mask in (("hand", hand), ("object", obj)):
         if not mask.any():
             raise DemonstrationError(f"{where}: the {name} mask is empty in every frame")
+    return hand, obj, static, found, noun
+
+
+def _contact(contact, detections, found, hand: np.ndarray, obj: np.ndarray, video, where) -> np.ndarray:
+    """(N,) the contact signal: the contact file's, the found hand's, or estimated from the masks
+    (and the detections file)."""
+    n = len(hand)
     if contact is not None:
-        signal = read_contact(contact, n)
-    elif found is not None and detections is None:
-        signal = found.contact
-        if not signal.any():
+        return read_contact(contact, n)
+    if found is not None and detections is None:
+        if not found.contact.any():
             raise DemonstrationError(f"{video}: no fingertip touches the object in any frame; give a contact file")
-    else:
-        signal = estimate_contact(hand, obj, detections=None if detections is None else read_detections(detections, n))
-        if not signal.any():
-            origin = detections if detections is not None else f"{where} (estimated from the masks)"
-            raise DemonstrationError(f"{origin}: the contact signal is never on; give a contact file")
-    try:
-        demo = Demonstration.from_arrays(
-            hand, obj, signal, fps, static_mask=np.stack(static) if static else None, camera_K=camera_K, action=action,
-            object_noun=noun,
-        )
-    except DemonstrationError as exc:
-        raise DemonstrationError(f"{contact if contact is not None else where}: {exc}") from None
-    return Recording(demo, frames, None if found is None else found.landmarks)
+        return found.contact
+    signal = estimate_contact(hand, obj, detections=None if detections is None else read_detections(detections, n))
+    if not signal.any():
+        origin = detections if detections is not None else f"{where} (estimated from the masks)"
+        raise DemonstrationError(f"{origin}: the contact signal is never on; give a contact file")
+    return signal
 
 
 def _found(video, frames: np.ndarray, key_frame: int, key_masks: dict[str, np.ndarray]):
