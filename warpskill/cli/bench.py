@@ -13,10 +13,21 @@ __all__ = ["register"]
 def register(commands) -> None:
     """Add ``bench`` and its benchmarks to the ``commands`` sub-parsers."""
     bench = commands.add_parser("bench", help="benchmarks").add_subparsers(title="benchmarks")
+    for add in (_add_kernels, _add_speed, _add_synthetic, _add_robot, _add_generalize, _add_something_else,
+                _add_second_opinion, _add_footage, _add_flips):
+        add(bench)
+
+
+def _add_kernels(bench) -> None:
+    """``warpskill bench kernels``."""
     kernels = bench.add_parser("kernels", help="Warp kernel microbenchmarks")
     kernels.add_argument("--device", default="cpu", help="cpu or cuda")
     kernels.add_argument("--repeats", type=int, default=5, help="timed repetitions (median reported)")
     kernels.set_defaults(run=_bench_kernels)
+
+
+def _add_speed(bench) -> None:
+    """``warpskill bench speed``."""
     speed = bench.add_parser("speed", help="optimisation iterations: Warp engine vs its plain-Torch reference")
     speed.add_argument("--device", default="cpu", help="cpu, or cuda (then the CPU too)")
     speed.add_argument("--engines", nargs="+", default=["warp", "reference"], help="warp and/or reference")
@@ -34,6 +45,10 @@ def register(commands) -> None:
     speed.add_argument("--seeds", type=int, default=1, help="with --set synthetic: seeds per action (default: 1)")
     speed.add_argument("--videos", nargs="+", default=(), help="with --set dev: a subset of the video ids")
     speed.set_defaults(run=_bench_speed)
+
+
+def _add_synthetic(bench) -> None:
+    """``warpskill bench synthetic``."""
     synthetic = bench.add_parser("synthetic", help="the 9 actions x N seeds: the paper's success table")
     synthetic.add_argument("--seeds", type=int, default=3, help="seeds per action (default: 3)")
     synthetic.add_argument("--noise", default="moderate", help="none, low, moderate or high")
@@ -52,6 +67,10 @@ def register(commands) -> None:
     add_optimize_options(synthetic, known_names=True)
     _add_baseline_options(synthetic)
     synthetic.set_defaults(run=_bench_synthetic)
+
+
+def _add_robot(bench) -> None:
+    """``warpskill bench robot``."""
     robot = bench.add_parser("robot", help="retarget synthetic reconstructions to the Panda and replay them")
     robot.add_argument("--seeds", type=int, default=3, help="seeds per action (default: 3)")
     robot.add_argument("--source", choices=("truth", "optimised"), default="truth",
@@ -65,6 +84,10 @@ def register(commands) -> None:
                        help="skip the perturbed replays (the robust row)")
     add_optimize_options(robot)  # for --source optimised; --device is also Newton's
     robot.set_defaults(run=_bench_robot)
+
+
+def _add_generalize(bench) -> None:
+    """``warpskill bench generalize``."""
     generalize = bench.add_parser("generalize", help="each skill in random layouts: planned, succeeded, robust")
     generalize.add_argument("reconstructions", type=Path, nargs="+", help="reconstruction .npz files")
     generalize.add_argument("--layouts", type=int, default=10, help="random layouts per skill (default: 10)")
@@ -77,6 +100,10 @@ def register(commands) -> None:
     generalize.add_argument("-o", "--out", type=Path, help="write the per-layout outcome table into this folder")
     _add_baseline_options(generalize)
     generalize.set_defaults(run=_bench_generalize)
+
+
+def _add_something_else(bench) -> None:
+    """``warpskill bench something-else``."""
     real = bench.add_parser("something-else", help="the paper's success table on annotated real videos")
     real.add_argument("--annotations", type=Path, required=True, help="Something-Else boxes (JSON)")
     real.add_argument("--phases", type=Path, required=True, help="action phases (CSV)")
@@ -94,6 +121,10 @@ def register(commands) -> None:
     add_optimize_options(real)
     _add_baseline_options(real)
     real.set_defaults(run=_bench_something_else)
+
+
+def _add_second_opinion(bench) -> None:
+    """``warpskill bench second-opinion``."""
     second = bench.add_parser("second-opinion",
                               help="an independent generator's scenes through the Something-Else reader")
     second.add_argument("-o", "--out", type=Path, default=Path("warpskill-out/second-opinion"), help="output folder")
@@ -106,6 +137,10 @@ def register(commands) -> None:
     add_optimize_options(second)
     _add_baseline_options(second)
     second.set_defaults(run=_bench_second_opinion)
+
+
+def _add_footage(bench) -> None:
+    """``warpskill bench footage``."""
     footage = bench.add_parser("footage", help="real clips outlined on one frame, the hand found: masks against "
                                                 "people's boxes (extra video)")
     footage.add_argument("folder", type=Path, help="a folder in the real-footage format (frames/<id>/, annotations.json)")
@@ -115,6 +150,10 @@ def register(commands) -> None:
     footage.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_baseline_options(footage)
     footage.set_defaults(run=_bench_footage)
+
+
+def _add_flips(bench) -> None:
+    """``warpskill bench flips``."""
     flips = bench.add_parser("flips", help="the cases that flipped between two outcome tables or output folders")
     flips.add_argument("baseline", type=Path, help="outcomes.json, or a benchmark's output folder")
     flips.add_argument("current", type=Path, help="outcomes.json, or a benchmark's output folder")
