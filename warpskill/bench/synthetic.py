@@ -14,6 +14,7 @@ import torch
 
 from warpskill.bench.outcomes import camera_frame_errors, judged, record_outcomes
 from warpskill.contract.actions import ACTIONS
+from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.evaluation import evaluate, success_table
 from warpskill.contract.nouns import SIZES
 from warpskill.contract.results_folder import ResultsFolder
@@ -106,17 +107,8 @@ def bench_synthetic(
     with tempfile.TemporaryDirectory() as scratch:
         for action in actions:
             for seed in range(seed_start, seed_start + seeds):
-                demo = make_demonstration(action, seed=seed, noise=noise, input=input, scenarios=scenarios)
-                if nouns:
-                    rng = np.random.default_rng([seed, ACTIONS.index(action)])
-                    demo = replace(demo, object_noun=spread_noun(demo.truth["object_size"], rng))
-                t = {k: torch.as_tensor(np.asarray(demo.truth[k], dtype=np.float64))
-                     for k in ("object_size", "static_size", "camera_height")}
-                given = {}
-                for name in known:
-                    value = measured(name, t["object_size"], t["static_size"], t["camera_height"])
-                    if value is not None:
-                        given[name] = float(value)
+                demo, note = _case(action, seed, noise=noise, input=input, scenarios=scenarios, nouns=nouns)
+                given = _known_lengths(demo, known)
                 folder = ResultsFolder((out or Path(scratch)) / f"{action}_{seed}")
                 folder.path.mkdir(parents=True, exist_ok=True)
                 checkpoint = folder.checkpoint
@@ -131,10 +123,7 @@ def bench_synthetic(
                     if out is not None:
                         folder.save(recon, folder.initialisation if init_only else folder.reconstruction)
                 seconds.append(time.perf_counter() - start)
-                situations = " ".join(real_scenarios(action, seed)) if scenarios == "real" else ""
-                situations = " ".join(filter(None, [situations, nouns and f"noun={demo.object_noun}"]))
-                outcomes.append(replace(judged(f"{action}_{seed}", evaluation, errors["full method"][-1]),
-                                        note=situations))
+                outcomes.append(replace(judged(f"{action}_{seed}", evaluation, errors["full method"][-1]), note=note))
                 if out is not None:
                     folder.save(demo, folder.demonstration)
                 print(f"{action:<22} seed {seed}: init {'ok  ' if rows['initialisation only'][-1][1] else 'fail'}"
@@ -148,3 +137,26 @@ def bench_synthetic(
           f"max {max(seconds):.1f} s")
     record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
     return {"rows": rows, "errors": errors, "seconds": seconds, "outcomes": outcomes}
+
+
+def _case(action: str, seed: int, *, noise: str, input: str, scenarios: str, nouns: bool) -> tuple[Demonstration, str]:
+    """A case's demonstration (with a spread noun, :func:`spread_noun`, where ``nouns``) and its note:
+    the real videos' situations mixed in (``scenarios="real"``) and the noun."""
+    demo = make_demonstration(action, seed=seed, noise=noise, input=input, scenarios=scenarios)
+    if nouns:
+        rng = np.random.default_rng([seed, ACTIONS.index(action)])
+        demo = replace(demo, object_noun=spread_noun(demo.truth["object_size"], rng))
+    situations = " ".join(real_scenarios(action, seed)) if scenarios == "real" else ""
+    return demo, " ".join(filter(None, [situations, nouns and f"noun={demo.object_noun}"]))
+
+
+def _known_lengths(demo: Demonstration, known: Sequence[str]) -> dict[str, float]:
+    """The lengths named in ``known`` at the demonstration's true values [m] (those it has)."""
+    t = {k: torch.as_tensor(np.asarray(demo.truth[k], dtype=np.float64))
+         for k in ("object_size", "static_size", "camera_height")}
+    given = {}
+    for name in known:
+        value = measured(name, t["object_size"], t["static_size"], t["camera_height"])
+        if value is not None:
+            given[name] = float(value)
+    return given
