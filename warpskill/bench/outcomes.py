@@ -15,6 +15,7 @@ import csv
 import dataclasses
 import json
 import os
+import traceback
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +27,8 @@ from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
 from warpskill.engine.projection import world_to_camera
 
+NOTES = "notes.txt"
+"""A case's file of what was done about messy annotations, one note a line."""
 OUTCOMES_JSON = "outcomes.json"
 OUTCOMES_CSV = "outcomes.csv"
 ERROR_KEYS = ("centre", "hand", "size", "camera_height", "elevation", "scale", "noun_ratio", "hand_ratio")
@@ -67,6 +70,10 @@ class CaseOutcome:
         return bool(self.robot.get("planned") and replays and all(replays.values())
                     and self.robot.get("robust") is not False)
 
+    def verdict(self) -> str:
+        """The printed verdict: ``ok  `` or ``fail (`` the failed checks ``)``."""
+        return "ok  " if self.success else "fail (" + ", ".join(self.failed_checks) + ")"
+
 
 def judged(case: str, evaluation: Evaluation, errors: dict[str, float] | None = None) -> CaseOutcome:
     """The outcome of a case from its evaluation (and its ground-truth errors, if any)."""
@@ -78,6 +85,19 @@ def judged(case: str, evaluation: Evaluation, errors: dict[str, float] | None = 
 def failed_case(case: str, action: str, reason: str) -> CaseOutcome:
     """The outcome of a case that has no reconstruction (it counts as a failure)."""
     return CaseOutcome(case, action, False, ("error",), {}, reason)
+
+
+def write_notes(folder: Path, notes: list[str]) -> None:
+    """Write a case's notes to ``folder/notes.txt`` (atomically, creating the folder)."""
+    ResultsFolder(folder).write_text(folder / NOTES, "".join(note + "\n" for note in notes))
+
+
+def record_failure(folder: Path, error: BaseException) -> str:
+    """The one-line reason of a case's ``error``, its traceback kept in ``folder``'s error file
+    where the folder exists (call from the ``except`` block)."""
+    if folder.exists():
+        ResultsFolder(folder).record_error(traceback.format_exc())
+    return f"{type(error).__name__}: {error}"
 
 
 def write_outcomes(folder: str | os.PathLike, outcomes: list[CaseOutcome]) -> Path:

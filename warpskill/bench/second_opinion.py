@@ -18,7 +18,6 @@ import os
 import subprocess
 import sys
 import time
-import traceback
 from pathlib import Path
 from typing import Sequence
 
@@ -30,7 +29,9 @@ from warpskill.bench.outcomes import (
     failed_case,
     judged,
     median_errors,
+    record_failure,
     record_outcomes,
+    write_notes,
 )
 from warpskill.contract.actions import ACTIONS
 from warpskill.contract.demonstration import TRUTH_PREFIX
@@ -119,8 +120,8 @@ def bench_second_opinion(
         start = time.perf_counter()
         try:
             demo, notes = something_else_demonstration(video)
+            write_notes(out / case, notes)
             keeper = ResultsFolder(out / case)
-            keeper.write_text(keeper.path / "notes.txt", "".join(note + "\n" for note in notes))
             with keeper.locked():
                 recon = keeper.finished_reconstruction()
                 if recon is None:
@@ -129,10 +130,9 @@ def bench_second_opinion(
             errors = camera_frame_errors(recon, read_truth(demo_paths[vid]))
             outcome = judged(case, evaluate(recon, video.action), errors)
         except Exception as exc:  # one bad case must not stop the benchmark: report it, go on
-            ResultsFolder(out / case).record_error(traceback.format_exc())
-            outcome = failed_case(case, video.action, f"{type(exc).__name__}: {exc}")
+            outcome = failed_case(case, video.action, record_failure(out / case, exc))
         outcomes.append(outcome)
-        verdict = "ok  " if outcome.success else "fail (" + ", ".join(outcome.failed_checks) + ")"
+        verdict = outcome.verdict()
         scale = f"scale {outcome.errors['scale']:.2f}" if "scale" in outcome.errors else outcome.note
         print(f"{case:<24} {verdict}  {scale}, {time.perf_counter() - start:.1f} s", flush=True)
     rows = {ROW: [(o.action, o.success) for o in outcomes]}

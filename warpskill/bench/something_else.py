@@ -37,7 +37,7 @@ from warpskill.bench.end_to_end import (
     robot_step,
     timing_lines,
 )
-from warpskill.bench.outcomes import CaseOutcome, folder_outcomes, record_outcomes
+from warpskill.bench.outcomes import CaseOutcome, folder_outcomes, judged, record_failure, record_outcomes, write_notes
 from warpskill.bench.rulers import hand_ruler_ratio
 from warpskill.cluster import INSTALL_HINT, optimize_folder, ray_available
 from warpskill.contract.evaluation import evaluate, success_table
@@ -123,46 +123,71 @@ def bench_something_else(
         print(f"--workers needs Ray, which is not installed ({INSTALL_HINT}): running serially")
     results, failures, seconds = [], {}, {}
     for vid in videos or list(table):
-        video = table[vid]
-        folder = out / vid
-        start = time.perf_counter()
+        video, folder, start = table[vid], out / vid, time.perf_counter()
         try:
-            if video.action is None:
-                raise ValueError("no action in the actions file")
-            demo, notes = something_else_demonstration(video)
-            folder.mkdir(parents=True, exist_ok=True)
-            (folder / "notes.txt").write_text("".join(note + "\n" for note in notes))
-            keeper = ResultsFolder(folder)
-            with keeper.locked():
-                recon, status = keeper.finished_reconstruction(options.to_json()), "done before"
-                if recon is None:
-                    optimizing = time.perf_counter()
-                    recon = optimize(demo, options, progress=False, checkpoint=keeper.checkpoint)
-                    seconds[vid] = time.perf_counter() - optimizing
-                    keeper.save(recon, keeper.reconstruction)
-                    if pictures:
-                        save_pictures(recon, demo, folder)
-                    status = "reconstructed"
+            recon, status, notes = _reconstruct(video, folder, options, pictures, seconds)
             evaluation = evaluate(recon, video.action)
         except Exception as exc:  # one bad video must not stop the benchmark: report it, go on
-            failures[vid] = f"{type(exc).__name__}: {exc}"
-            if folder.exists():
-                ResultsFolder(folder).record_error(traceback.format_exc())
-            if video.action:  # without an action it has no column in the table
-                results.append((video.action, False))
-                if step is not None:
-                    step.skip(vid, video.action)
-            print(f"{vid:>6} {video.action or '?':<20} ERROR {failures[vid]}", flush=True)
+            failures[vid] = record_failure(folder, exc)
+            _count_failure(results, step, vid, video.action, failures[vid])
             continue
-        results.append((video.action, evaluation.success))
-        failed = [name for name, ok in evaluation.checks.items() if not ok]
-        verdict = "ok  " if evaluation.success else "fail (" + ", ".join(failed) + ")"
         took = f"{time.perf_counter() - start:.1f} s" + (f" ({seconds[vid]:.1f} s reconstructing)" if vid in seconds else "")
-        print(f"{vid:>6} {video.action:<20} {verdict}  {status}, {took}, {len(notes)} note(s)", flush=True)
-        if step is not None:
-            step.run(vid, video.action, recon, evaluation.success, folder)
+        _count(results, step, vid, evaluation, f"{status}, {took}, {len(notes)} note(s)", recon, folder)
     result = _report(results, failures, seconds, time.perf_counter() - wall, "serial, in this process", step)
     return _with_outcomes(result, out, table, videos or list(table), baseline, save_baseline, options.object_noun)
+
+
+def _demonstration(video, folder: Path):
+    """A video's demonstration and notes (:func:`something_else_demonstration`), the notes
+    written to ``folder/notes.txt``.
+
+    Raises:
+        ValueError: the video has no action.
+    """
+    if video.action is None:
+        raise ValueError("no action in the actions file")
+    demo, notes = something_else_demonstration(video)
+    write_notes(folder, notes)
+    return demo, notes
+
+
+def _reconstruct(video, folder: Path, options: OptimizeOptions, pictures: bool,
+                 seconds: dict[str, float]) -> tuple[Reconstruction, str, list[str]]:
+    """A video's reconstruction in ``folder`` (the finished one there, or optimised, saved and
+    pictured), its status and the demonstration's notes; the optimisation's time [s] goes to
+    ``seconds[video id]``."""
+    demo, notes = _demonstration(video, folder)
+    keeper = ResultsFolder(folder)
+    with keeper.locked():
+        recon = keeper.finished_reconstruction(options.to_json())
+        if recon is not None:
+            return recon, "done before", notes
+        optimizing = time.perf_counter()
+        recon = optimize(demo, options, progress=False, checkpoint=keeper.checkpoint)
+        seconds[video.video_id] = time.perf_counter() - optimizing
+        keeper.save(recon, keeper.reconstruction)
+        if pictures:
+            save_pictures(recon, demo, folder)
+    return recon, "reconstructed", notes
+
+
+def _count(results: list, step, vid: str, evaluation, detail: str, recon: Reconstruction, folder: Path) -> None:
+    """Count a video's evaluation in ``results``, print its line (the verdict, then ``detail``) and
+    run the robot step on it."""
+    results.append((evaluation.action, evaluation.success))
+    print(f"{vid:>6} {evaluation.action:<20} {judged(vid, evaluation).verdict()}  {detail}", flush=True)
+    if step is not None:
+        step.run(vid, evaluation.action, recon, evaluation.success, folder)
+
+
+def _count_failure(results: list, step, vid: str, action: str | None, reason: str) -> None:
+    """Count a video that has no evaluation as a failure (one without an action has no column in
+    the table) and print why."""
+    if action:
+        results.append((action, False))
+        if step is not None:
+            step.skip(vid, action)
+    print(f"{vid:>6} {action or '?':<20} ERROR {reason}", flush=True)
 
 
 def _with_outcomes(result: dict, out: Path, table, vids, baseline, save_baseline, object_noun) -> dict:
@@ -238,19 +263,10 @@ def _bench_on_ray(table, vids, out: Path, options, pictures, workers, address, s
     wall = time.perf_counter()
     results, failures, seconds, demos, notes = [], {}, {}, {}, {}
     for vid in vids:
-        video = table[vid]
         try:
-            if video.action is None:
-                raise ValueError("no action in the actions file")
-            demos[vid], notes[vid] = something_else_demonstration(video)
-            (out / vid).mkdir(parents=True, exist_ok=True)
-            (out / vid / "notes.txt").write_text("".join(note + "\n" for note in notes[vid]))
+            demos[vid], notes[vid] = _demonstration(table[vid], out / vid)
         except Exception as exc:
-            failures[vid] = f"{type(exc).__name__}: {exc}"
-            if (out / vid).exists():
-                ResultsFolder(out / vid).record_error(traceback.format_exc())
-            if video.action:
-                results.append((video.action, False))
+            failures[vid] = record_failure(out / vid, exc)
     summary = optimize_folder(demos, out, options, workers=workers, address=address, progress=True,
                               postprocess=save_pictures if pictures else None)
     for vid in vids:
@@ -266,22 +282,14 @@ def _bench_on_ray(table, vids, out: Path, options, pictures, workers, address, s
         except Exception as exc:
             if vid not in failures:
                 failures[vid] = str(exc) if isinstance(exc, RuntimeError) else f"{type(exc).__name__}: {exc}"
-                results.append((video.action, False))
-            if step is not None and video.action:
-                step.skip(vid, video.action)
-            print(f"{vid:>6} {video.action or '?':<20} ERROR {failures[vid]}", flush=True)
+            _count_failure(results, step, vid, video.action, failures[vid])
             continue
         if outcome.status == "done":
             seconds[vid] = outcome.optimize_seconds
-        results.append((video.action, evaluation.success))
-        failed = [name for name, ok in evaluation.checks.items() if not ok]
-        verdict = "ok  " if evaluation.success else "fail (" + ", ".join(failed) + ")"
         status = "reconstructed" if outcome.status == "done" else outcome.status
-        print(f"{vid:>6} {video.action:<20} {verdict}  {status}, {outcome.seconds:.1f} s in its task "
-              f"({outcome.cpu_seconds:.1f} s CPU, {outcome.optimize_seconds:.1f} s reconstructing), "
-              f"{len(notes[vid])} note(s)", flush=True)
-        if step is not None:
-            step.run(vid, video.action, recon, evaluation.success, out / vid)
+        _count(results, step, vid, evaluation, f"{status}, {outcome.seconds:.1f} s in its task "
+               f"({outcome.cpu_seconds:.1f} s CPU, {outcome.optimize_seconds:.1f} s reconstructing), "
+               f"{len(notes[vid])} note(s)", recon, out / vid)
     cpu = sum(o.cpu_seconds for o in summary.outcomes.values())
     where = f"{summary.workers} Ray worker(s), Ray start-up {summary.startup_seconds:.1f} s, {cpu:.1f} s CPU in the tasks"
     return _report(results, failures, seconds, time.perf_counter() - wall, where, step)
