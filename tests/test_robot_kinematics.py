@@ -3,24 +3,16 @@ placo (Pinocchio), the MuJoCo replay and the mesh files themselves."""
 
 from __future__ import annotations
 
-import importlib.metadata
 import importlib.util
 
 import numpy as np
 import pytest
 
+from warpskill.cli.common import installed
 from warpskill.robot.kinematics import link_poses, link_shapes
 
 
-def _has_distribution(name: str) -> bool:
-    try:
-        importlib.metadata.distribution(name)
-    except importlib.metadata.PackageNotFoundError:
-        return False
-    return True
-
-
-if importlib.util.find_spec("mujoco") is None or not _has_distribution("example-robot-data"):
+if importlib.util.find_spec("mujoco") is None or not installed("example-robot-data"):
     pytest.skip("needs mujoco and example-robot-data", allow_module_level=True)
 
 from warpskill.robot.model import ARM_JOINTS, FINGER_JOINTS, HOME_Q, panda_description_dir, panda_urdf

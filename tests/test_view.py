@@ -3,7 +3,6 @@ with Rerun's own RRD reader."""
 
 from __future__ import annotations
 
-import importlib.metadata
 import importlib.util
 import sys
 
@@ -18,21 +17,14 @@ from warpskill.cli import main
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.replay import Replay
 from warpskill.synthetic import make_demonstration
+from warpskill.cli.common import installed
 from warpskill.cli.view import view_folder
 from warpskill.visual.rerun_view import view
 from warpskill.visual.rerun_entities import HAND_LENGTH, HAND_RADIUS
 from warpskill.visual.rerun_scene import CLASS_IDS, rendered_labels
 
 
-def _has_distribution(name: str) -> bool:
-    try:
-        importlib.metadata.distribution(name)
-    except importlib.metadata.PackageNotFoundError:
-        return False
-    return True
-
-
-HAS_ROBOT = all(importlib.util.find_spec(name) is not None for name in ("placo", "mujoco")) and _has_distribution(
+HAS_ROBOT = all(importlib.util.find_spec(name) is not None for name in ("placo", "mujoco")) and installed(
     "example-robot-data"
 )
 needs_robot = pytest.mark.skipif(not HAS_ROBOT, reason="needs placo, mujoco and example-robot-data")
