@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import fcntl
 import json
 import os
 import time
@@ -33,15 +32,11 @@ from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.npz import write_atomic
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.replay import Replay
+from warpskill.file_lock import hold_lock
 
 __all__ = ["ResultsFolder", "ResultsFolderError"]
 
 Loaded = TypeVar("Loaded")
-
-# The lock files this process holds, each with its open handle and how many blocks hold it:
-# flock excludes a second open of the same file even within one process, so nested blocks share one.
-_HELD: dict[Path, list] = {}
-
 
 class _File:
     """A file of the results folder: ``folder.<name>`` is its path in that folder."""
@@ -182,26 +177,8 @@ class ResultsFolder:
         Reentrant within a process: a nested block on the same folder shares the lock.
         """
         self.path.mkdir(parents=True, exist_ok=True)
-        lock = (self.path / self.LOCK).resolve()
-        if lock in _HELD:
-            _HELD[lock][1] += 1
-            try:
-                yield self
-            finally:
-                _HELD[lock][1] -= 1
-            return
-        handle = _open_locked(lock, self.path)
-        with handle:
-            handle.seek(0)
-            handle.truncate()
-            handle.write(f"{os.getpid()}\n")
-            handle.flush()
-            _HELD[lock] = [handle, 1]
-            try:
-                yield self
-            finally:
-                del _HELD[lock]
-                lock.unlink(missing_ok=True)  # while still held: a waiter then finds its file gone and retries
+        with hold_lock((self.path / self.LOCK).resolve(), self.path):
+            yield self
 
 
 def _same_options(made: str, asked: str) -> bool:
@@ -233,37 +210,6 @@ def _agree(made: dict, asked: dict) -> bool:
         elif a != b:
             return False
     return True
-
-
-def _open_locked(lock: Path, folder: Path):
-    """The lock file ``lock``, open and exclusively locked by this process.
-
-    A holder removes the file as it finishes, so a process that waited on the old file
-    retries on a new one until the file it locked is the one at ``lock``.
-    """
-    while True:
-        handle = open(lock, "a+")
-        _acquire(handle, folder)
-        try:
-            if os.stat(lock).st_ino == os.fstat(handle.fileno()).st_ino:
-                return handle
-        except FileNotFoundError:
-            pass
-        handle.close()
-
-
-def _acquire(handle, folder: Path) -> None:
-    """Take the exclusive lock on ``handle``; if another process has it, say which and wait."""
-    try:
-        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        return
-    except BlockingIOError:
-        pass
-    handle.seek(0)
-    pid = handle.read().strip()
-    holder = f"pid {pid}" if pid.isdigit() else "another process"
-    print(f"{folder}: being written by {holder}; waiting for it to finish", flush=True)
-    fcntl.flock(handle, fcntl.LOCK_EX)
 
 
 @contextlib.contextmanager
