@@ -215,11 +215,7 @@ class _Filming:
 def pose_vectors(poses: np.ndarray) -> np.ndarray:
     """(T, 7) position [m] and unit quaternion (w, x, y, z) of (T, 4, 4) poses; the quaternions'
     signs chosen continuous over T, the first with w >= 0."""
-    import mujoco  # optional extra: robot
-
-    quats = np.zeros((len(poses), 4))
-    for quat, pose in zip(quats, poses):
-        mujoco.mju_mat2Quat(quat, np.ascontiguousarray(pose[:3, :3], dtype=np.float64).reshape(9))
+    quats = np.array([replay_mujoco.mujoco_quaternion(pose[:3, :3]) for pose in poses]).reshape(len(poses), 4)
     quats[0] *= 1.0 if quats[0, 0] >= 0 else -1.0
     for k in range(1, len(quats)):
         quats[k] *= 1.0 if quats[k] @ quats[k - 1] >= 0 else -1.0

@@ -32,7 +32,8 @@ OBJECT_JOINT = "object_free"
 """Name of the manipulated cuboid's free joint in the model."""
 
 
-def _quat(R: np.ndarray) -> np.ndarray:
+def mujoco_quaternion(R: np.ndarray) -> np.ndarray:
+    """(4,) MuJoCo's unit quaternion (w, x, y, z) of the rotation matrix ``R`` (3, 3)."""
     import mujoco  # optional extra: robot (imported after prefer_headless_gl picks its GL)
 
     q = np.zeros(4)
@@ -67,7 +68,7 @@ def build_spec(recon: Reconstruction, base_pose: np.ndarray):
     spec.option.integrator = getattr(mujoco.mjtIntegrator, "mjINT_" + config.mujoco.integrator.upper())
     base = spec.body("panda_link0")
     base.pos = base_pose[:3, 3]
-    base.quat = _quat(base_pose[:3, :3])
+    base.quat = mujoco_quaternion(base_pose[:3, :3])
     for body in spec.bodies:
         if body.name.startswith("panda_"):
             body.gravcomp = 1.0 if panda.gravity_compensation else 0.0
@@ -85,10 +86,11 @@ def build_spec(recon: Reconstruction, base_pose: np.ndarray):
     world = spec.worldbody
     scene = make_scene(recon, base=base_pose)
     for name, T, size in environment_boxes(scene):
-        world.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=size / 2, pos=T[:3, 3], quat=_quat(T[:3, :3]),
+        world.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=size / 2, pos=T[:3, 3],
+                       quat=mujoco_quaternion(T[:3, :3]),
                        friction=contact.mujoco_friction, condim=contact.condim, contype=1, conaffinity=3,
                        rgba=config.table.rgba if name == "table" else config.static.rgba)
-    obj = world.add_body(name=OBJECT_BODY, pos=recon.object_pos[0], quat=_quat(recon.object_rot[0]))
+    obj = world.add_body(name=OBJECT_BODY, pos=recon.object_pos[0], quat=mujoco_quaternion(recon.object_rot[0]))
     obj.add_freejoint(name=OBJECT_JOINT)
     obj.add_geom(name=OBJECT_BODY, type=mujoco.mjtGeom.mjGEOM_BOX, size=recon.object_size / 2, mass=config.object.mass,
                  friction=contact.mujoco_friction, condim=contact.condim, contype=1, conaffinity=3,
