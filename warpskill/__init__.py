@@ -5,7 +5,7 @@ The public API, loaded on first use (so the command line starts fast):
 - data: :class:`Demonstration`, :class:`Reconstruction`, :data:`ACTIONS`
 - reconstruction: :func:`optimize`, :func:`optimize_many`, :class:`OptimizeOptions`, :class:`OptimizeConfig`, :class:`LossWeights`
 - metric: :func:`evaluate`
-- skill: :func:`skill_from` -> :class:`Skill`, carried to a :class:`Layout` (:meth:`Skill.apply`)
+- skill: :func:`skill_from` -> :class:`Skill`, carried to a :class:`Layout` (:func:`warpskill.robot.skill_layout.apply_skill`)
 - engine: :func:`simulate`, :class:`PhysicsConfig`, :func:`render_silhouettes`
 - synthetic data: :func:`make_demonstration`
 - robot (extra ``warpskill[robot]``): :func:`retarget`, :func:`replay`, :class:`RobotPlan`, :class:`Replay`

@@ -1,6 +1,6 @@
 """``warpskill bench generalize``: does a skill work beyond the one layout it was shown in?
 
-For each reconstruction's skill (:func:`~warpskill.contract.skill.skill_from`), ``layouts``
+For each reconstruction's skill (:func:`~warpskill.robot.skill_layout.skill_from`), ``layouts``
 random layouts of :func:`warpskill.export.layouts.layouts` (the object anywhere on the
 Panda's reachable table at any yaw; each static box at a random place and yaw there, apart
 from the object, with the object's whole path on the table), each planned

@@ -12,15 +12,15 @@ default placement: the scene centre 0.5 m ahead, the robot facing world +y).
 - each static box: uniform over the sector's area, yaw uniform in [-pi, pi);
 
 and keeps a draw only where the action still makes sense: the boxes' start footprints do not
-touch (:func:`~warpskill.contract.skill.overlap_depth` 0) nor reach within
+touch (:func:`~warpskill.robot.skill_layout.overlap_depth` 0) nor reach within
 :data:`BASE_CLEARANCE` of the robot's base axis (nor does the object anywhere on its path),
-:meth:`Skill.apply` accepts it (no path through a static box) and the object's whole held
+:func:`~warpskill.robot.skill_layout.apply_skill` accepts it (no path through a static box) and the object's whole held
 path, the ``put_*`` release beside or on the box included, keeps
 :data:`~warpskill.robot.placement.REACH_MARGIN` (5 cm) inside the Panda's reach from some base
 placement that the retargeting searches (:func:`~warpskill.robot.placement.check_reach`, the
 test the retargeting applies to a layout: every layout drawn is one it accepts). The path is
 not held to the sector: the robot stands where the layout's scene needs it. The path moves no
-faster than :data:`~warpskill.contract.skill.SWING_SPEED` (a ``put_*`` path bent towards a
+faster than :data:`~warpskill.robot.skill_layout.SWING_SPEED` (a ``put_*`` path bent towards a
 far box could), and an object held from the first frame starts resting on the table (within
 :data:`START_HEIGHT`), not lifted over a box beside it.
 """

@@ -25,7 +25,7 @@ Keys of the plan ``.npz`` (units: seconds, radians, metres):
 
 The sizes and poses are those the replays simulate (:meth:`RobotPlan.scene`); plans
 without them (older files) replay the reconstruction's. A plan with a layout replays the
-reconstruction's skill carried to it (:meth:`~warpskill.contract.skill.Skill.apply`).
+reconstruction's skill carried to it (:func:`~warpskill.robot.skill_layout.apply_skill`).
 
 The CSV has one row per sample: ``t, q1..q7, gripper, phase`` where ``phase`` is
 ``approach``, ``grasp``, ``hold``, ``release`` or ``retreat``.

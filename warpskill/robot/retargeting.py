@@ -28,8 +28,8 @@ size), the held path blending into that release; the replay checks that it stays
 A plan that cannot be made raises :class:`PlanError` naming the frame and why, in one line.
 
 With a ``layout`` (:class:`~warpskill.contract.skill.Layout`), the reconstruction's skill
-(:func:`~warpskill.contract.skill.skill_from`) is carried there first
-(:meth:`~warpskill.contract.skill.Skill.apply`) and the plan made for that reconstruction;
+(:func:`~warpskill.robot.skill_layout.skill_from`) is carried there first
+(:func:`~warpskill.robot.skill_layout.apply_skill`) and the plan made for that reconstruction;
 the plan carries the layout, so that the replays simulate it. A layout the Panda cannot
 serve from any base placement (:func:`~warpskill.robot.placement.check_reach`), or one the
 skill cannot be carried to, raises :class:`~warpskill.contract.skill.LayoutError`. In a
@@ -208,7 +208,7 @@ def robot_reconstruction(recon: Reconstruction, *, placement: Placement = Placem
     while held). This is the one place that decides the object's start: the plan carries the
     result (:meth:`RobotPlan.scene`), which the replays and the video simulate.
 
-    A layout's reconstruction (:meth:`~warpskill.contract.skill.Skill.apply`) starts a
+    A layout's reconstruction (:func:`~warpskill.robot.skill_layout.apply_skill`) starts a
     carried-in object resting on the table at its take-over pose, where the robot is to take
     it: ``onset=0`` takes it there, on the layout's path as it is (sizes fitted, path cleared),
     whichever placement the search then finds.

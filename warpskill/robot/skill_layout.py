@@ -70,7 +70,7 @@ object beside the box it was put onto)."""
 SWING_SPEED = 1.7
 """[m/s] an object held from the first frame that moves faster than this (between two frames)
 is still being swung into view: a new layout starts it where it has slowed down for good
-(:meth:`Skill.takeover`). The Panda's Cartesian speed limit; the robot takes over a carried-in
+(:func:`takeover`). The Panda's Cartesian speed limit; the robot takes over a carried-in
 object no faster than this (:data:`warpskill.robot.retargeting.CARRY_SPEED`)."""
 
 TAKEOVER_SPEED = 0.5 * SWING_SPEED

@@ -131,7 +131,7 @@ def onto_release(scene: Scene, T_off: np.ndarray, size: np.ndarray, static: int 
     """The put-onto release pose of the object (pose ``T_off`` (4, 4) at the demonstrated release,
     edge lengths ``size`` (3,): the carried object's own) on static box ``static``'s top.
 
-    The centre is moved horizontally into the top (:data:`~warpskill.contract.skill.ONTO_INSET` inside its edges, in the
+    The centre is moved horizontally into the top (:data:`~warpskill.robot.skill_layout.ONTO_INSET` inside its edges, in the
     box's frame) and vertically so that the object's lowest corner is :data:`ONTO_CLEARANCE`
     above the box's reconstructed top; the orientation is kept.
     """
