@@ -39,7 +39,8 @@ def cuboid_corners(pos: np.ndarray, rot: np.ndarray, size: np.ndarray) -> np.nda
 
 
 def support_extent(rot: np.ndarray, size: np.ndarray, direction: np.ndarray) -> float:
-    """Half the extent [m] of a cuboid (rotation ``rot`` (3, 3), edge lengths ``size`` (3,)) along ``direction`` (unit)."""
+    """Half the extent [m] of a cuboid (rotation ``rot`` (3, 3), edge lengths ``size`` (3,)) along
+    ``direction`` (3,), a unit vector."""
     return 0.5 * float(np.abs(rot.T @ direction) @ size)
 
 
