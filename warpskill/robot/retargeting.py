@@ -135,7 +135,7 @@ def retarget(recon: Reconstruction | Skill, *, layout: Layout | None = None, pla
     try:
         plan = _plan_anywhere(robot_recon, placement, auto)
     except PlanError as error:
-        if layout is not None or recon.grasped[0] > 0.5:
+        if layout is not None or is_held(recon.grasped[0]):
             raise
         plan, note = _taken_over(recon, where, placement, auto, sizes, error)
     plan.note = note
