@@ -11,7 +11,6 @@ import pytest
 from warpskill.cli.common import installed
 from warpskill.robot.kinematics import link_poses, link_shapes
 
-
 if importlib.util.find_spec("mujoco") is None or not installed("example-robot-data"):
     pytest.skip("needs mujoco and example-robot-data", allow_module_level=True)
 

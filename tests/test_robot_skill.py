@@ -12,9 +12,8 @@ from robot_support import require_robot
 robot = require_robot("placo", "mujoco")
 from warpskill.cli import main  # noqa: E402
 from warpskill.contract.reconstruction import Reconstruction  # noqa: E402
-from warpskill.synthetic import make_demonstration  # noqa: E402
 from warpskill.robot.model import make_scene  # noqa: E402
-
+from warpskill.synthetic import make_demonstration  # noqa: E402
 
 LOWER = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])
 UPPER = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])

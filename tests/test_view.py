@@ -14,15 +14,14 @@ pytest.importorskip("rerun")
 import rerun.chunk
 
 from warpskill.cli import main
+from warpskill.cli.common import installed
+from warpskill.cli.view import view_folder
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.replay import Replay
 from warpskill.synthetic import make_demonstration
-from warpskill.cli.common import installed
-from warpskill.cli.view import view_folder
-from warpskill.visual.rerun_view import view
 from warpskill.visual.rerun_entities import HAND_LENGTH, HAND_RADIUS
 from warpskill.visual.rerun_scene import CLASS_IDS, rendered_labels
-
+from warpskill.visual.rerun_view import view
 
 HAS_ROBOT = all(importlib.util.find_spec(name) is not None for name in ("placo", "mujoco")) and installed(
     "example-robot-data"

@@ -16,7 +16,6 @@ from warpskill.contract.reconstruction import Reconstruction
 from warpskill.engine.projection import camera_rotation
 from warpskill.media import HAND_COLOR, HAND_HELD_COLOR, OBJECT_COLOR, STATIC_COLOR, figure, rgb
 
-
 _AXIS_COLORS = {"x": "tab:red", "y": "tab:green", "z": "tab:blue"}
 
 
