@@ -104,10 +104,10 @@ def retarget(recon: Reconstruction | Skill, *, layout: Layout | None = None, pla
         keep_size: refuse (PlanError) a grasped cuboid too wide for the gripper instead of
             substituting one that fits.
 
-    A demonstration that gives no plan as it is (its object first touched out of the arm's
-    reach: far off, or still being swung into view) is planned once more with the object taken
-    over where the robot can do the task from, as one carried into view is
-    (:func:`robot_reconstruction`).
+    A demonstration whose object cannot be grasped where it is first touched (out of the arm's
+    reach from every placement: far off, or still being swung into view) is planned once more
+    with the object taken over where the robot can do the task from, as one carried into view
+    is (:func:`robot_reconstruction`).
 
     Returns:
         The plan, with ``planning_time`` [s], the placement and the sizes used set.
@@ -135,7 +135,7 @@ def retarget(recon: Reconstruction | Skill, *, layout: Layout | None = None, pla
     try:
         plan = _plan_anywhere(robot_recon, placement, auto)
     except PlanError as error:
-        if layout is not None or is_held(recon.grasped[0]):
+        if layout is not None or is_held(recon.grasped[0]) or not getattr(error, "at_onset", False):
             raise
         plan, note = _taken_over(recon, where, placement, auto, sizes, error)
     plan.note = note
@@ -365,8 +365,10 @@ def _plan_at(recon: Reconstruction, scene: Scene, task: dict) -> RobotPlan:
             break
     if not failures:
         reasons = "; ".join(f"{name}: {why}" for name, why in rejected[:6])
-        raise PlanError(f"frame {k_on} (t = {recon.t[k_on]:.2f} s, grasp onset): no feasible grasp pose "
-                        f"({reasons})")
+        error = PlanError(f"frame {k_on} (t = {recon.t[k_on]:.2f} s, grasp onset): no feasible grasp pose "
+                          f"({reasons})")
+        error.at_onset = True  # the object cannot be taken where it is first touched
+        raise error
     raise PlanError("; ".join(failures))
 
 
