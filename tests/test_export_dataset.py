@@ -144,12 +144,13 @@ def test_killed_export_leaves_out_as_it_was(recon_path, tmp_path):
     require_robot("placo", "mujoco")
     out = tmp_path / "ds"
     out.mkdir()  # an empty folder to write into: it must stay (and stay empty)
-    # The same skill five times: each skill is judged, then filmed and written, so the kill comes
-    # while the second is judged, after the first one's episode is in the files.
-    process = subprocess.Popen(export_command(out, *[recon_path] * 5, episodes=1), cwd=tmp_path,
+    # The same skill ten times: each skill is judged, then filmed and written, so the kill comes
+    # while the second is judged, after the first one's episode is in the files (ten: the export
+    # must still be running however slowly a loaded machine starts it).
+    process = subprocess.Popen(export_command(out, *[recon_path] * 10, episodes=1), cwd=tmp_path,
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                env={**os.environ, "OMP_NUM_THREADS": "1"})
-    deadline = time.monotonic() + 60
+    deadline = time.monotonic() + 180
     while time.monotonic() < deadline and not any(
             path.stat().st_size > 1000 for path in tmp_path.glob(".ds.partial-*/videos/*/chunk-000/*.mp4")):
         time.sleep(0.05)  # until its first episode's frames are in the videos
