@@ -14,11 +14,11 @@ import pytest
 
 from warpskill.bench.footage import box_iou, box_ious, hurried_outline, mask_box, read_footage, score_clip
 from warpskill.contract import DemonstrationError
-from warpskill.contract.nouns import HAND_BREADTH
 from warpskill.data.contact import IN_CONTACT, NO_CONTACT, UNKNOWN, detections_from_landmarks
 from warpskill.data.footage import MODEL_HAND_LENGTH, MODEL_HAND_WIDTH, model_hand_masks
 from warpskill.data.readers import is_image_sequence, read_video
 from warpskill.engine.primitives import HAND_LENGTH, HAND_RADIUS
+from warpskill.nouns.typical import HAND_BREADTH
 
 FOOTAGE = Path(__file__).resolve().parents[2] / "shared" / "data" / "real_footage"
 

@@ -8,7 +8,7 @@ import torch
 
 from warpskill.bench.synthetic import spread_noun
 from warpskill.cli.common import add_optimize_options, optimize_options
-from warpskill.contract.nouns import SIZES
+from warpskill.nouns.typical import SIZES
 from warpskill.optimizer import OptimizeOptions, optimize
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.hypotheses import read_evidence

@@ -9,8 +9,12 @@ import pytest
 from test_something_else import _messy, _write
 
 from warpskill.contract.demonstration import Demonstration, DemonstrationError
-from warpskill.contract.noun_sizes import CATEGORIES
-from warpskill.contract.nouns import (
+from warpskill.data.box_annotations import (
+    read_something_else,
+    something_else_demonstration,
+)
+from warpskill.nouns.table import CATEGORIES
+from warpskill.nouns.typical import (
     ALIASES,
     HAND_BREADTH,
     HAND_LENGTH,
@@ -18,10 +22,6 @@ from warpskill.contract.nouns import (
     normalise_noun,
     size_ratio,
     typical_size,
-)
-from warpskill.data.box_annotations import (
-    read_something_else,
-    something_else_demonstration,
 )
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"

@@ -4,8 +4,8 @@ import json
 
 import numpy as np
 import pytest
-
 from test_evaluate import scene
+
 from warpskill.bench.outcomes import (
     CaseOutcome,
     evaluate_folder,

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from warpskill.contract.evaluation import evaluate
 from warpskill.contract.reconstruction import Reconstruction, ReconstructionError
 from warpskill.contract.replay import Replay
-from warpskill.contract.evaluation import evaluate
 
 
 def _scene(n: int = 8) -> Reconstruction:

@@ -10,13 +10,12 @@ from robot_support import require_robot
 
 robot = require_robot("placo")
 from warpskill.contract.reconstruction import Reconstruction  # noqa: E402
-from warpskill.synthetic import make_demonstration  # noqa: E402
 from warpskill.robot.model import (  # noqa: E402
     make_scene,
     panda_description_dir,
     panda_urdf,
 )
-
+from warpskill.synthetic import make_demonstration  # noqa: E402
 
 # URDF limits of the Panda arm (panda.urdf of example-robot-data).
 LOWER = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from warpskill.bench.rulers import hand_ruled_size, hand_ruler_ratio
-from warpskill.contract.nouns import HAND_LENGTH
+from warpskill.nouns.typical import HAND_LENGTH
 from warpskill.synthetic import make_demonstration
 
 

@@ -65,9 +65,9 @@ def test_the_hand_tip_depth_comes_from_the_masks_width_at_the_tip(axis, toleranc
     import torch
 
     from warpskill.contract.camera import Intrinsics
-    from warpskill.contract.geometry import frame_from_axis
     from warpskill.engine.projection import project, world_to_camera
     from warpskill.engine.raycast import raycast_masks
+    from warpskill.geometry import frame_from_axis
     from warpskill.optimizer.measurements import MaskGeometry, hand_depth
 
     # The default camera's pixels are not square (fx != fy): a hand lying across the view is
@@ -90,9 +90,9 @@ def test_the_hand_tilt_towards_the_camera_comes_from_its_foreshortening():
     import torch
 
     from warpskill.contract.camera import Intrinsics
-    from warpskill.contract.geometry import frame_from_axis
     from warpskill.engine.projection import camera_rotation
     from warpskill.engine.raycast import raycast_masks
+    from warpskill.geometry import frame_from_axis
     from warpskill.optimizer.measurements import TYPICAL_HAND_TILT, MaskGeometry, hand_tilt
 
     intrinsics = Intrinsics.default(120, 214)
@@ -128,8 +128,8 @@ def test_a_hand_mask_one_pixel_thin_reads_as_the_typical_tilt_and_no_depth():
 def test_the_guess_leans_a_hand_reaching_down_towards_the_camera(put_onto):
     import torch
 
-    from warpskill.optimizer.inputs import working_inputs
     from warpskill.optimizer.guess import initial_guess
+    from warpskill.optimizer.inputs import working_inputs
     from warpskill.optimizer.measurements import TYPICAL_HAND_TILT
 
     given = working_inputs(put_onto, OptimizeConfig(), torch.device("cpu"))

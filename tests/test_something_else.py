@@ -11,13 +11,13 @@ from warpskill.bench.outcomes import load_outcomes
 from warpskill.bench.rulers import hand_ruled_size
 from warpskill.cli import main
 from warpskill.contract.demonstration import DemonstrationError
-from warpskill.contract.nouns import SIZES
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.data.box_annotations import (
     box_masks,
     read_something_else,
     something_else_demonstration,
 )
+from warpskill.nouns.typical import SIZES
 
 ROOT = Path(__file__).resolve().parents[1]
 DEV = next((p / "data" / "something_else_dev" for p in (ROOT / "shared", ROOT.parent / "shared")

@@ -1,5 +1,5 @@
-"""NumPy geometry the layers share: rotations about z, quaternions, cuboid corners and extents,
-the minimum-jerk blend, and the frames a grasp signal holds the object in.
+"""NumPy geometry the layers share: rotations about z and from an axis, quaternions, cuboid
+corners and extents, the minimum-jerk blend, and the frames a grasp signal holds the object in.
 
 A leaf below the contract, the robot, the exports and the pictures: imports NumPy only.
 """
@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 
-__all__ = ["CORNER_SIGNS", "HELD", "NEVER_HELD", "cuboid_corners", "heading", "held_span", "is_held", "min_jerk",
-           "quat_multiply", "quaternions", "release_frame", "rot_z", "support_extent"]
+__all__ = ["CORNER_SIGNS", "HELD", "NEVER_HELD", "cuboid_corners", "frame_from_axis", "heading", "held_span",
+           "is_held", "min_jerk", "quat_multiply", "quaternions", "release_frame", "rot_z", "support_extent"]
 
 HELD = 0.5
 """``grasped`` above this: the hand holds (or touches) the object."""
@@ -58,6 +58,22 @@ def heading(rot: np.ndarray) -> float:
     if math.hypot(rot[0, 0], rot[1, 0]) >= 0.5:
         return math.atan2(rot[1, 0], rot[0, 0])
     return math.atan2(rot[1, 1], rot[0, 1]) - math.pi / 2
+
+
+def frame_from_axis(axis: np.ndarray) -> np.ndarray:
+    """Rotations whose local z is ``axis`` (normalised), x horizontal where the axis is not near-vertical.
+
+    Args:
+        axis: (..., 3) direction(s), any non-zero length.
+
+    Returns:
+        (..., 3, 3) rotations (local to world), columns x, y, z.
+    """
+    z = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+    helper = np.where(np.abs(z[..., 2:3]) < 0.9, np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x, axis=-1, keepdims=True)
+    return np.stack([x, np.cross(z, x), z], -1)
 
 
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:

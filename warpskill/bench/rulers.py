@@ -2,7 +2,7 @@
 
 Where the hand touches the object, both are at about the same distance from the camera, so
 the ratio of their apparent sizes is (roughly) the ratio of their real sizes, and a hand's
-length is known (:data:`~warpskill.contract.nouns.HAND_LENGTH`). The figure is independent
+length is known (:data:`~warpskill.nouns.typical.HAND_LENGTH`). The figure is independent
 of the optimiser's scale (its camera prior, the noun prior) and of the noun table: a second
 opinion on a reconstructed object's size where there is no ground truth. Rough by nature:
 a hand's box is its visible part, a box's longer side only an object's projection.
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from warpskill.contract.demonstration import Demonstration
-from warpskill.contract.nouns import HAND_LENGTH
+from warpskill.nouns.typical import HAND_LENGTH
 
 __all__ = ["hand_ruled_size", "hand_ruler_ratio"]
 

@@ -41,7 +41,6 @@ from warpskill.bench.outcomes import CaseOutcome, folder_outcomes, judged, recor
 from warpskill.bench.rulers import hand_ruler_ratio
 from warpskill.cluster import INSTALL_HINT, optimize_folder, ray_available
 from warpskill.contract.evaluation import evaluate, success_table
-from warpskill.contract.nouns import HAND_LENGTH, size_ratio
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
 from warpskill.data.box_annotations import (
@@ -52,6 +51,7 @@ from warpskill.data.box_annotations import (
 from warpskill.data.box_annotations import (
     object_noun as video_noun,
 )
+from warpskill.nouns.typical import HAND_LENGTH, size_ratio
 from warpskill.optimizer.options import OptimizeOptions
 from warpskill.optimizer.pipeline import optimize
 from warpskill.robot import prefer_headless_gl
@@ -218,7 +218,7 @@ def _with_size_and_robot(outcome: CaseOutcome, size_ratios: dict[str, float | No
 
 def noun_size_ratios(out: Path, nouns: dict[str, str | None]) -> dict[str, float | None]:
     """Each reconstructed object's size against its noun's typical size
-    (:func:`~warpskill.contract.nouns.size_ratio`; None: no typical size), per video id with a
+    (:func:`~warpskill.nouns.typical.size_ratio`; None: no typical size), per video id with a
     reconstruction in ``out``; prints their median. ``nouns``: video id -> the object's noun."""
     ratios = {}
     for vid, noun in nouns.items():

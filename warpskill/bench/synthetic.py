@@ -16,8 +16,8 @@ from warpskill.bench.outcomes import camera_frame_errors, judged, record_outcome
 from warpskill.contract.actions import ACTIONS
 from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.evaluation import evaluate, success_table
-from warpskill.contract.nouns import SIZES
 from warpskill.contract.results_folder import ResultsFolder
+from warpskill.nouns.typical import SIZES
 from warpskill.optimizer.known import check_known, measured
 from warpskill.optimizer.options import OptimizeOptions
 from warpskill.optimizer.pipeline import optimize_many
@@ -29,7 +29,7 @@ bottle, a box of one name differ by about this much in log)."""
 
 
 def spread_noun(size: np.ndarray, rng: np.random.Generator, spread: float = NOUN_SPREAD) -> str:
-    """A noun of :data:`~warpskill.contract.nouns.SIZES` for an object of edges ``size`` (3,) [m]:
+    """A noun of :data:`~warpskill.nouns.typical.SIZES` for an object of edges ``size`` (3,) [m]:
     the one whose typical edges, sorted, are nearest in log to the object's sorted edges times
     one log-normal draw of ``spread``; as for a real object, right only on average."""
     target = np.log(np.sort(size)) + spread * rng.standard_normal()

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import importlib.metadata
 import contextlib
 import functools
+import importlib.metadata
 import math
 from collections.abc import Mapping
 from pathlib import Path

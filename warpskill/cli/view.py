@@ -6,10 +6,7 @@ import os
 import sys
 from pathlib import Path
 
-from warpskill.contract import Demonstration
-from warpskill.contract import Reconstruction, ReconstructionError
-from warpskill.contract import Replay
-from warpskill.contract import ResultsFolder
+from warpskill.contract import Demonstration, Reconstruction, ReconstructionError, Replay, ResultsFolder
 
 __all__ = ["register", "view_folder"]
 

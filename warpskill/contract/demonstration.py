@@ -46,7 +46,7 @@ class Demonstration:
         truth: ground truth (synthetic demonstrations): reconstruction key (without the
             ``truth_`` prefix) -> array; empty if none.
         object_noun: what the manipulated object is, as annotated (e.g. ``"coffee mug"``;
-            :func:`warpskill.contract.nouns.typical_size` gives its typical size), or None.
+            :func:`warpskill.nouns.typical.typical_size` gives its typical size), or None.
 
     Raises:
         DemonstrationError: naming the key and the problem, for any input that breaks

@@ -24,7 +24,7 @@ The hand as a ruler: the optimiser's hand is a cylinder of known width
 (``warpskill.optimizer.measurements.hand_depth``). So the hand mask given to it,
 :func:`model_hand_masks`, is that cylinder's silhouette drawn along the found hand (from the
 fingertips through the wrist and on along the forearm) with the width that the landmarks'
-palm breadth measures for an adult hand (:data:`warpskill.contract.nouns.HAND_BREADTH`): the
+palm breadth measures for an adult hand (:data:`warpskill.nouns.typical.HAND_BREADTH`): the
 hand's apparent size in every frame where it is seen becomes the scene's scale. The found
 hand's own shape (:func:`warpskill.data.hands.hand_masks`) is what occludes the objects and
 what ``bench footage`` compares with people's boxes.
@@ -37,7 +37,6 @@ import dataclasses
 import cv2
 import numpy as np
 
-from warpskill.contract.nouns import HAND_BREADTH
 from warpskill.data.contact import (
     UNKNOWN,
     detections_from_landmarks,
@@ -48,6 +47,7 @@ from warpskill.data.following import follow_outlines, visible_masks
 from warpskill.data.hand_landmarks import FINGERTIPS, MIDDLE_KNUCKLE, WRIST, find_hands, hand_size
 from warpskill.data.hand_regions import hand_regions
 from warpskill.data.hands import choose_hand, hand_masks
+from warpskill.nouns.typical import HAND_BREADTH
 
 MODEL_HAND_WIDTH, MODEL_HAND_LENGTH = 0.08, 0.40
 """[m] the optimiser's hand: a cylinder 8 cm across and 40 cm long
@@ -130,7 +130,7 @@ def model_hand_masks(landmarks: np.ndarray, image_size: tuple[int, int]) -> np.n
     """The optimiser's hand drawn along found hands: per frame a band as wide as the model
     cylinder (:data:`MODEL_HAND_WIDTH`) at the scale the hand's apparent breadth gives
     (:func:`warpskill.data.hand_landmarks.hand_size`, an adult's
-    :data:`~warpskill.contract.nouns.HAND_BREADTH`), from the farthest fingertip along the
+    :data:`~warpskill.nouns.typical.HAND_BREADTH`), from the farthest fingertip along the
     hand's axis (middle knuckle to wrist) on for the cylinder's length (at least past the
     wrist), or to the image border.
 

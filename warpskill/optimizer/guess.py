@@ -14,8 +14,8 @@ import numpy as np
 import torch
 
 from warpskill.contract.camera import Intrinsics
-from warpskill.contract.geometry import frame_from_axis
 from warpskill.engine.projection import camera_rotation
+from warpskill.geometry import frame_from_axis
 from warpskill.optimizer.measurements import TYPICAL_HAND_TILT, MaskGeometry, fill_missing, hand_depth
 from warpskill.optimizer.measurements import hand_tilt as measured_hand_tilt
 from warpskill.optimizer.scene import SceneTrajectories, static_poses

@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from warpskill.contract.demonstration import Demonstration
-from warpskill.contract.nouns import typical_size
+from warpskill.nouns.typical import typical_size
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.guess import OBJECT_DEPTH_HYPOTHESES, initial_guess
 from warpskill.optimizer.inputs import (
@@ -100,7 +100,7 @@ class Evidence:
 def read_evidence(demo: Demonstration, known: dict[str, float], config: OptimizeConfig,
                   device: torch.device, noun: str | None = None) -> Evidence:
     """The :class:`Evidence` of one demonstration with its ``known`` lengths and the object's
-    ``noun`` (:func:`~warpskill.contract.nouns.typical_size`; None: no noun)."""
+    ``noun`` (:func:`~warpskill.nouns.typical.typical_size`; None: no noun)."""
     inputs = working_inputs(demo, config, device)
     typical = typical_size(noun)
     weights = config.weights.for_scene(known_length=bool(known), object_from_boxes=bool(inputs.targets.boxed[1]),

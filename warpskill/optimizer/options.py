@@ -36,7 +36,7 @@ class OptimizeOptions:
             A mapping is accepted and normalised.
         object_noun: what the manipulated object is (e.g. ``"mug"``), replacing the
             demonstration's ``object_noun``; where no length is ``known``, its typical size
-            (:func:`warpskill.contract.nouns.typical_size`) is a weak prior on the object's
+            (:func:`warpskill.nouns.typical.typical_size`) is a weak prior on the object's
             largest edge. A noun without a typical size adds no prior (one line says so).
         config: iterations, learning rates, resolution, loss weights, physics constants.
     """

@@ -22,10 +22,10 @@ import numpy as np
 import torch
 
 from warpskill.contract.demonstration import Demonstration
-from warpskill.contract.nouns import typical_size
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.engine.device import resolve_device
 from warpskill.engine.distances import box_signed_distance
+from warpskill.nouns.typical import typical_size
 from warpskill.optimizer.batching import Backend, render_many, simulate_many
 from warpskill.optimizer.checkpoint import Checkpoint, fingerprint
 from warpskill.optimizer.config import OptimizeConfig

@@ -147,7 +147,7 @@ def noun_size_prior(scene: SceneTrajectories, weights: LossWeights,
                     typical_edges: tuple[float, float, float]) -> torch.Tensor:
     """Weak prior on the object's size from what it is: ``sum_i log(edge_i / typical_i)^2``
     over the edges sorted ascending, weighted, ``typical_edges`` [m] being those of its noun's
-    typical size (:func:`warpskill.contract.nouns.typical_size`), in ascending order.
+    typical size (:func:`warpskill.nouns.typical.typical_size`), in ascending order.
 
     Boxes leave the scale open (a larger scene farther away draws the same boxes), and the
     camera-height prior alone would decide it; and they show neither the object's depth nor

@@ -55,7 +55,7 @@ class LossWeights:
         shape (docs/results-history.md has the measurements behind both rules).
 
         Object noun size (``object_noun_size``, the edges about its noun's typical ones,
-        :mod:`warpskill.contract.nouns`): on wherever no length is known, the images
+        :mod:`warpskill.nouns.typical`): on wherever no length is known, the images
         then leaving the scale open; at ``masks_noun_share`` of its weight where the masks
         are true silhouettes, whose hand width measures the scale. The camera-height prior
         stays on beside it, weaker: together they pull toward the scale both make likely. A

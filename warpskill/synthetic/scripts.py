@@ -8,10 +8,9 @@ import numpy as np
 import torch
 
 from warpskill.contract.actions import ACTIONS, check_action
-from warpskill.contract.geometry import frame_from_axis
 from warpskill.engine.records import SceneInputs
 from warpskill.engine.simulation import PhysicsConfig, substeps_per_frame
-from warpskill.geometry import min_jerk, rot_z
+from warpskill.geometry import frame_from_axis, min_jerk, rot_z
 
 GRASP_LEVEL = 0.02  # [m] |g| of the scripted grasp signal
 

@@ -4,7 +4,7 @@ A prior on the scene's scale: a reconstructed object can be compared with the ty
 of what the annotation calls it (``Demonstration.object_noun``). Sizes are (height, width,
 depth) [m] of the object in its usual resting pose: height vertical, width the longer and
 depth the shorter horizontal edge. They are typical, rounded values of several hundred
-everyday nouns (:mod:`warpskill.contract.noun_sizes`, by category); each entry names where
+everyday nouns (:mod:`warpskill.nouns.table`, by category); each entry names where
 such a size is published. Nouns are matched after :func:`normalise_noun` (case, articles,
 plurals), through :data:`ALIASES` (synonyms, annotators' misspellings) and by their head noun
 (``water flask`` -> ``flask``, ``piece of paper`` -> ``paper``); an unknown noun has none.
@@ -17,7 +17,7 @@ import re
 
 import numpy as np
 
-from warpskill.contract.noun_sizes import ALIASES, CATEGORIES
+from warpskill.nouns.table import ALIASES, CATEGORIES
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,7 +53,7 @@ SIZES: dict[str, TypicalSize] = {
     noun: TypicalSize(height / 100, width / 100, depth / 100, source)
     for table in CATEGORIES.values() for noun, (height, width, depth, source) in table.items()
 }
-"""Noun (normalised) -> its typical size (:data:`~warpskill.contract.noun_sizes.CATEGORIES`, in metres)."""
+"""Noun (normalised) -> its typical size (:data:`~warpskill.nouns.table.CATEGORIES`, in metres)."""
 
 _ARTICLES = re.compile(r"^(?:(?:a|an|the|some|one|two|three|few|several|this|that|these|those|my|your) )+")
 _LINK = re.compile(r" (of|with|for) ")

@@ -1,9 +1,9 @@
-"""The table of typical object sizes behind :mod:`warpskill.contract.nouns`, by category.
+"""The table of typical object sizes behind :mod:`warpskill.nouns.typical`, by category.
 
 Each entry is ``noun: (height, width, depth, source)``, the edges in **centimetres** of the
 object in its usual resting pose (height vertical, width >= depth horizontal), typical and
 rounded, and where such a size is published. Nouns are in the form
-:func:`~warpskill.contract.nouns.normalise_noun` gives (lower case, last word singular).
+:func:`~warpskill.nouns.typical.normalise_noun` gives (lower case, last word singular).
 Sources: a product standard, a manufacturer's specification of one common product, a rule
 book, USDA FoodData Central's portion descriptions for produce, Wikipedia, or, where no
 single product stands for the class, "retailers' listings" (typical sizes of the products
