@@ -12,7 +12,7 @@ from warpskill.engine.distances import support_height
 from warpskill.engine.records import Rollout
 from warpskill.engine.rotations import yaw_rotation
 from warpskill.optimizer.config import OptimizeConfig
-from warpskill.optimizer.guess import initial_guess
+from warpskill.optimizer.guess import ObjectDepth, initial_guess
 from warpskill.optimizer.hypotheses import (
     PhysicsHypothesis,
     best_simulation,
@@ -138,6 +138,11 @@ def test_the_on_static_guess_stands_the_object_on_a_static_box_that_reaches_unde
     assert torch.allclose(support, top.expand_as(support))
     with pytest.raises(ValueError, match="static box"):
         initial_guess(masks, demo.contact, demo.intrinsics, 0, object_depth="on the static", resting=resting)
+    with pytest.raises(ValueError, match="object_depth must be one of .*'on the ground'.*not 'floating'"):
+        initial_guess(masks, demo.contact, demo.intrinsics, demo.num_static, object_depth="floating")
+    as_enum = initial_guess(masks, demo.contact, demo.intrinsics, demo.num_static, object_depth=ObjectDepth.STATIC,
+                            resting=resting)
+    assert torch.equal(as_enum.object_pos, guess.object_pos)  # the member and its value name the same guess
 
 
 @pytest.mark.slow

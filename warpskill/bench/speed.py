@@ -43,7 +43,7 @@ from warpskill.engine.reference.physics import simulate_reference
 from warpskill.engine.reference.raster import render_reference
 from warpskill.optimizer.batching import Backend, render_many, simulate_many
 from warpskill.optimizer.config import OptimizeConfig
-from warpskill.optimizer.guess import OBJECT_DEPTH_HYPOTHESES, initial_guess
+from warpskill.optimizer.guess import ObjectDepth, initial_guess
 from warpskill.optimizer.inputs import WorkingInputs, working_inputs
 from warpskill.optimizer.pipeline import optimize, optimize_many
 from warpskill.optimizer.scene import SceneTrajectories
@@ -194,7 +194,7 @@ def bench_speed(
             engine = backend(name)
             stage_a = median_seconds(iteration(lambda: problem.stage_a(engine), problem.initial), repeats, device)
             stage_b = median_seconds(iteration(lambda: problem.stage_b(engine), problem.physical), repeats, device)
-            estimate = len(OBJECT_DEPTH_HYPOTHESES) * config.init_iterations * stage_a + config.iterations * stage_b
+            estimate = len(ObjectDepth) * config.init_iterations * stage_a + config.iterations * stage_b
             measured = None
             if measure_full:
                 start = time.perf_counter()
@@ -217,7 +217,7 @@ def _print_table(rows: list[dict], problem: Problem, repeats: int) -> None:
         f"{torch.get_num_threads()}"
     )
     print(
-        f"full optimisation = {len(OBJECT_DEPTH_HYPOTHESES)} x {config.init_iterations} stage (a) + "
+        f"full optimisation = {len(ObjectDepth)} x {config.init_iterations} stage (a) + "
         f"{config.iterations} stage (b) iterations (an upper bound); 'measured' runs warpskill.optimize"
     )
     warp = {r["device"]: r for r in rows if r["engine"] == "warp"}

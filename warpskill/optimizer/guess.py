@@ -8,6 +8,7 @@ edge; the hand's tip is at the hand pixel nearest the object, at the object's de
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,9 +22,15 @@ from warpskill.optimizer.measurements import hand_tilt as measured_hand_tilt
 from warpskill.optimizer.scene import SceneTrajectories, static_poses
 from warpskill.optimizer.weights import LossWeights
 
-OBJECT_DEPTH_HYPOTHESES = ("resting depth", "on the ground", "on the static")
-"""Where the object is after it was first seen (see :func:`initial_guess`); the last applies
-only to frames that :func:`warpskill.optimizer.inputs.rests_on_static` finds."""
+
+class ObjectDepth(str, enum.Enum):
+    """Where the object is after it was first seen (see :func:`initial_guess`): it keeps its
+    resting depth, stands on the ground below its mask's bottom edge, or (only in the frames
+    :func:`warpskill.optimizer.inputs.rests_on_static` finds) on the static box's top."""
+
+    RESTING = "resting depth"
+    GROUND = "on the ground"
+    STATIC = "on the static"
 
 INITIAL_CAMERA_ELEVATION = 0.6  # [rad] the camera's look below the horizon, a person's view of a table
 CAMERA_HEIGHT_RANGE = (0.15, 1.5)  # [m] the camera heights a first guess may take: a table's scale
@@ -72,7 +79,7 @@ def initial_guess(
     intrinsics: Intrinsics,
     num_static: int,
     *,
-    object_depth: str = "resting depth",
+    object_depth: ObjectDepth | str = ObjectDepth.RESTING,
     resting: np.ndarray | None = None,
     hand_width: bool = True,
     carried: np.ndarray | None = None,
@@ -92,7 +99,7 @@ def initial_guess(
         contact: (N,) bool.
         intrinsics: working-resolution intrinsics.
         num_static: K.
-        object_depth: one of :data:`OBJECT_DEPTH_HYPOTHESES`.
+        object_depth: an :class:`ObjectDepth` (or its value).
         resting: (N,) bool, the frames where the object may rest on the first static box
             (needed by ``"on the static"``).
         hand_width: whether the hand mask's width measures its depth (not so for masks
@@ -108,9 +115,10 @@ def initial_guess(
         ValueError: an unknown ``object_depth``, or ``"on the static"`` without a static box
             or resting frames.
     """
-    if object_depth not in OBJECT_DEPTH_HYPOTHESES:
-        raise ValueError(f"object_depth must be one of {OBJECT_DEPTH_HYPOTHESES}, not {object_depth!r}")
-    on_static = object_depth == "on the static"
+    if object_depth not in {depth.value for depth in ObjectDepth}:
+        raise ValueError(f"object_depth must be one of {[depth.value for depth in ObjectDepth]}, not {object_depth!r}")
+    object_depth = ObjectDepth(object_depth)
+    on_static = object_depth is ObjectDepth.STATIC
     carried = np.asarray(contact if carried is None else carried, dtype=bool)
     if on_static and (num_static == 0 or resting is None or not np.any(resting)):
         raise ValueError("object_depth 'on the static' needs a static box and frames where the object rests on it")
@@ -123,7 +131,7 @@ def initial_guess(
     height = typical_camera_height if depth is None else _camera_height(depth, object_geom, carried, K, R_wc)
     camera = GuessCamera(K, R_wc, np.array([0.0, 0.0, height]), targets.shape[-1])
 
-    object_pos, object_size, _ = _cuboid_from_masks(object_geom, camera, carried, object_depth == "on the ground")
+    object_pos, object_size, _ = _cuboid_from_masks(object_geom, camera, carried, object_depth is ObjectDepth.GROUND)
     static_pos, static_size = [], []
     for j in range(num_static):
         pos, size, visible = _cuboid_from_masks(MaskGeometry(targets[:, 2 + j]), camera, carried, True)

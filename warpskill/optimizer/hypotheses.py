@@ -1,7 +1,7 @@
 """The hypotheses the pipeline tries, one record each, and the rules that make and choose them.
 
 One view leaves some things open (the paper's Fig. 1): where the object is after it was
-first seen (:data:`~warpskill.optimizer.guess.OBJECT_DEPTH_HYPOTHESES`), whether the hand
+first seen (:class:`~warpskill.optimizer.guess.ObjectDepth`), whether the hand
 still holds it after the contact signal ends, and whether it was put on the static box or
 behind it. :func:`warpskill.optimize` fits each hypothesis and keeps the one the masks
 support best:
@@ -25,7 +25,7 @@ import torch
 from warpskill.contract.demonstration import Demonstration
 from warpskill.nouns.typical import typical_size
 from warpskill.optimizer.config import OptimizeConfig
-from warpskill.optimizer.guess import OBJECT_DEPTH_HYPOTHESES, initial_guess
+from warpskill.optimizer.guess import ObjectDepth, initial_guess
 from warpskill.optimizer.inputs import (
     WorkingInputs,
     covers_static_top,
@@ -151,8 +151,8 @@ def stage_a_candidates(evidence: Sequence[Evidence], typical_camera_height: floa
     candidates: list[Candidate] = []
     for i, seen in enumerate(evidence):
         given = seen.inputs
-        for hypothesis in OBJECT_DEPTH_HYPOTHESES:
-            on_static = hypothesis == "on the static"
+        for hypothesis in ObjectDepth:
+            on_static = hypothesis is ObjectDepth.STATIC
             placed = seen.placement
             if on_static and not placed.any():
                 continue
