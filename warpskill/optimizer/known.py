@@ -69,7 +69,7 @@ def pin_sizes(
     for name, value in known.items():
         part, _, axis = name.partition("_")
         if name == "camera_height":
-            camera_height = camera_height * 0 + value
+            camera_height = torch.full_like(camera_height, value)
         elif part == "object":
             mask = torch.zeros(3, dtype=torch.bool, device=object_size.device)
             mask[_AXES[axis]] = True

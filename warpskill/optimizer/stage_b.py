@@ -214,7 +214,7 @@ class PhysicalScene(SceneShape):
     def camera_height(self) -> torch.Tensor:
         """The camera's height [m] (the known one, when given)."""
         height = self.free_sizes()[2]
-        return height * 0 + self.known["camera_height"] if "camera_height" in self.known else height
+        return torch.full_like(height, self.known["camera_height"]) if "camera_height" in self.known else height
 
     def simulation_inputs(self) -> SceneInputs:
         """The rollout inputs of this scene (B = 1): pre-roll, the video, post-roll; simulate
