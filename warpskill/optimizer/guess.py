@@ -138,8 +138,9 @@ def initial_guess(
         static_pos.append(pos[np.flatnonzero(visible)[0]])
         static_size.append(size)
     if on_static:
-        object_pos = _placed_on_static(object_pos, object_size, object_geom, np.asarray(contact, bool), resting,
-                                       static_pos[0], static_size[0], camera)
+        object_pos, static_pos[0], static_size[0] = _placed_on_static(
+            object_pos, object_size, object_geom, np.asarray(contact, bool), resting, static_pos[0], static_size[0],
+            camera)
     toward = measured_hand_tilt(hand_geom, K) if hand_width and hand_tilt else None
     hand_pos, hand_rot = _hand_poses(hand_geom, object_centroid, object_pos, camera,
                                      TYPICAL_HAND_TILT if toward is None else toward)
@@ -205,11 +206,11 @@ def _cuboid_from_masks(
 def _placed_on_static(
     object_pos: np.ndarray, object_size: np.ndarray, geom: MaskGeometry, contact: np.ndarray, resting: np.ndarray,
     static_pos: np.ndarray, static_size: np.ndarray, camera: GuessCamera,
-) -> np.ndarray:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Object centres (N, 3) [m] that stand on the static box's top in the ``resting`` frames,
     below the mask's bottom edge, and are carried there during the contact (their camera
-    depth moving from where the object started to where it rests); the static box
-    (``static_pos``, ``static_size``, changed in place) reaches under the object."""
+    depth moving from where the object started to where it rests); and the static box's
+    centre (3,) and size (3,) [m] widened to reach under the object."""
     offset = np.array([0.0, 0.5 * object_size[1], 0.5 * object_size[2]])
 
     def bottom_pixel(k: int) -> np.ndarray:
@@ -230,8 +231,9 @@ def _placed_on_static(
             pos[k] = camera.position + ((1 - share) * start + share * end) * camera.ray(bottom_pixel(k)) + offset
     lo = np.minimum(static_pos[:2] - 0.5 * static_size[:2], rest[:2] - 0.5 * object_size[:2])
     hi = np.maximum(static_pos[:2] + 0.5 * static_size[:2], rest[:2] + 0.5 * object_size[:2])
-    static_pos[:2], static_size[:2] = 0.5 * (lo + hi), hi - lo
-    return pos
+    widened_pos, widened_size = static_pos.copy(), static_size.copy()
+    widened_pos[:2], widened_size[:2] = 0.5 * (lo + hi), hi - lo
+    return pos, widened_pos, widened_size
 
 
 def _hand_poses(
