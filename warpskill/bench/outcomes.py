@@ -14,8 +14,10 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
+import operator
 import os
 import traceback
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -221,27 +223,17 @@ def camera_frame_errors(recon, truth: dict[str, np.ndarray]) -> dict[str, float]
     }
 
 
-def flips(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome]) -> tuple[list, list]:
-    """The cases in both tables whose success changed: (fixed, broken), each a list of
-    (baseline outcome, current outcome) pairs in case order."""
+def flips(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome],
+          verdict: Callable[[CaseOutcome], bool | None] = operator.attrgetter("success")) -> tuple[list, list]:
+    """The cases in both tables whose ``verdict`` (default: the reconstruction's success; None:
+    not judged, skipped) changed: (fixed, broken), each a list of (baseline outcome, current
+    outcome) pairs in case order."""
     fixed, broken = [], []
     for case, now in current.items():
         before = baseline.get(case)
-        if before is None or before.success == now.success:
+        if before is None or None in (verdict(before), verdict(now)) or verdict(before) == verdict(now):
             continue
-        (fixed if now.success else broken).append((before, now))
-    return fixed, broken
-
-
-def robot_flips(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome]) -> tuple[list, list]:
-    """As :func:`flips`, for :attr:`CaseOutcome.robot_success` (cases with the robot step in both tables)."""
-    fixed, broken = [], []
-    for case, now in current.items():
-        before = baseline.get(case)
-        if before is None or None in (before.robot_success, now.robot_success) or \
-                before.robot_success == now.robot_success:
-            continue
-        (fixed if now.robot_success else broken).append((before, now))
+        (fixed if verdict(now) else broken).append((before, now))
     return fixed, broken
 
 
@@ -273,7 +265,7 @@ def _robot_flip_lines(baseline: dict[str, CaseOutcome], current: dict[str, CaseO
             if baseline[c].robot_success is not None and current[c].robot_success is not None]
     if not both:
         return []
-    fixed, broken = robot_flips(baseline, current)
+    fixed, broken = flips(baseline, current, operator.attrgetter("robot_success"))
     lines = [f"robot step: {len(both)} case(s) in both, {sum(baseline[c].robot_success for c in both)} -> "
              f"{sum(current[c].robot_success for c in both)} succeed; {len(fixed)} fixed, {len(broken)} broken"]
     for before_o, now in fixed:
