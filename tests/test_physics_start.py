@@ -4,9 +4,17 @@ import numpy as np
 import pytest
 import torch
 
+from warpskill.engine.simulation import substeps_per_frame
 from warpskill.optimizer.config import OptimizeConfig
+from warpskill.optimizer.physical_start import (
+    START_CLEARANCE,
+    SplineTiming,
+    grasp_window,
+    isolated_misfit_weights,
+    physical_start,
+)
 from warpskill.optimizer.scene import SceneTrajectories
-from warpskill.optimizer.stage_b import START_CLEARANCE, grasp_window, isolated_misfit_weights, make_physical_scene
+from warpskill.optimizer.stage_b import make_physical_scene
 
 N, FPS, ONSET = 16, 12.0, 8
 SIZE = 0.08  # [m] cube edge
@@ -156,3 +164,19 @@ def test_the_grasp_window_opens_a_few_frames_before_each_contact():
     contact = np.array([0, 0, 0, 0, 1, 1, 0, 0, 1, 0], dtype=bool)
     assert grasp_window(contact, 2).astype(int).tolist() == [0, 0, 1, 1, 1, 1, 1, 1, 1, 0]
     assert grasp_window(np.ones(3, dtype=bool), 2).all() and not grasp_window(np.zeros(3, dtype=bool), 2).any()
+
+
+def test_the_start_is_computed_from_the_fit_and_leaves_it_as_it_was():
+    fit = _fit(0.06)
+    before = {name: value.clone() for name, value in vars(fit).items() if isinstance(value, torch.Tensor)}
+    config = OptimizeConfig()
+    timing = SplineTiming.of(N, FPS, substeps_per_frame(FPS, config.physics), config.knots_per_second)
+    start = physical_start(fit, CONTACT, timing, knots_per_second=config.knots_per_second,
+                           grasp_level=2.0 * config.weights.grasp_margin)
+    assert all(torch.equal(getattr(fit, name), value) for name, value in before.items())
+    assert start.control.shape == (timing.num_knots, 7)
+    # The object moved to where the hand takes it (the drift), the scene registers exactly that start.
+    assert float(start.object_pos0[0] - fit.object_pos[0, 0]) > 0.0
+    scene = make_physical_scene(fit, CONTACT, FPS, config)
+    for name in ("hand_rot6", "grasp0", "control", "hand_pos0", "object_pos0", "object_rot6"):
+        assert torch.equal(getattr(scene, name).detach(), getattr(start, name)), name

@@ -12,9 +12,9 @@ from warpskill.engine.rotations import (
     rotation_to_6d,
     yaw_rotation,
 )
+from warpskill.optimizer.physical_start import START_CLEARANCE, clear_of_statics
 from warpskill.optimizer.scene import positive, positive_inverse
 from warpskill.optimizer.stage_a import far_from_contact
-from warpskill.optimizer.stage_b import START_CLEARANCE, clear_of_statics
 
 
 def test_6d_rotations_are_orthonormal_and_round_trip():

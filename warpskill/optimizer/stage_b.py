@@ -16,13 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from warpskill.engine.distances import box_signed_distance, static_exits
 from warpskill.engine.records import Rollout, SceneInputs
-from warpskill.engine.rotations import rotation_from_6d, rotation_log, rotation_to_6d
+from warpskill.engine.rotations import rotation_from_6d
 from warpskill.engine.simulation import PhysicsConfig, simulate, substeps_per_frame
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.known import pin_sizes
 from warpskill.optimizer.losses import MaskTargets
+from warpskill.optimizer.physical_start import SplineTiming, physical_start
 from warpskill.optimizer.scene import (
     SceneShape,
     SceneTrajectories,
@@ -30,15 +30,7 @@ from warpskill.optimizer.scene import (
     scene_priors,
     static_poses,
 )
-from warpskill.optimizer.spline import natural_cubic_basis
 from warpskill.optimizer.weights import LossWeights
-
-CONTACT_FIT_WEIGHT = 50.0  # contact frames' weight in the hand spline's least-squares fit
-MAX_ONSET_SHIFT = 0.02  # [m] largest shift of the hand path that puts the tip inside at the onset
-START_CLEARANCE = 0.002  # [m] left between an object moved out of a static box and its face
-_ACROSS = torch.tensor([1.0, 1.0, 0.0])  # keeps a displacement's horizontal part (world z is up)
-MISFIT_WINDOW = 4  # frames on each side of the running median of stage (a)'s hand loss
-MISFIT_SCALE = 0.2  # hand dIoU above that median at which a frame's weight in the spline's fit falls to 1/e
 
 
 @dataclass
@@ -97,112 +89,24 @@ class PhysicalScene(SceneShape):
         self.known = dict(known or {})
         self.physics = physics
         self.fps = float(fps)
-        self.num_frames = N = fit.hand_pos.shape[0]
+        self.num_frames = fit.hand_pos.shape[0]
         self.steps_per_frame = substeps_per_frame(fps, physics)
         self.pre_frames = math.ceil(pre_roll * fps)
         self.post_frames = math.ceil(post_roll * fps)
-        duration = (N - 1) / fps
-        num_knots = max(4, round(duration * knots_per_second) + 1)
-        dt = 1.0 / (fps * self.steps_per_frame)
-        step_times = np.arange((N - 1) * self.steps_per_frame) * dt
-        basis = natural_cubic_basis(num_knots, duration, step_times)  # (S, knots)
-        self.register_buffer("step_basis", torch.as_tensor(basis, dtype=torch.float32))
-        frame_times = np.arange(N) / fps
-        self.register_buffer(
-            "frame_basis", torch.as_tensor(natural_cubic_basis(num_knots, duration, frame_times), dtype=torch.float32)
-        )
-
-        P = torch.nn.Parameter
+        timing = SplineTiming.of(self.num_frames, fps, self.steps_per_frame, knots_per_second)
+        self.register_buffer("step_basis", torch.as_tensor(timing.step_basis(), dtype=torch.float32))
+        self.register_buffer("frame_basis", torch.as_tensor(timing.frame_basis(), dtype=torch.float32))
         fit = fit.detached("cpu")
-        # A spline fitted to a step crosses zero at the step: opened early, the signal is near its
-        # level when the tip enters, and the switch closes fully.
-        lead = math.ceil(0.5 * self.fps / knots_per_second)
-        grasp_target = torch.where(torch.as_tensor(grasp_window(contact, lead)), grasp_level, -grasp_level)
-        self.hand_rot6 = P(rotation_to_6d(fit.hand_rot[0]))
-        self.grasp0 = P(grasp_target[0].reshape(()).clone())
-        if hand_loss is not None and np.shape(hand_loss) != (N,):
-            raise ValueError(f"hand_loss must be ({N},), one value per frame of the fit, got {np.shape(hand_loss)}")
-        frame_weight = np.ones(N) if hand_loss is None else isolated_misfit_weights(hand_loss)
-        control = self._fit_control(fit, contact, frame_weight, grasp_target, basis, dt)
-        self.control = P(control)
-        gap, normal = self._grasp_onset_gap(fit, contact, control, basis, dt, grasp_level)
-        # A correction for the spline's error, not a relocation: far from the object, stage (a)
-        # itself disagrees with the contact signal, and moving the whole path would undo its fit.
-        shift = gap.clamp(0.0, MAX_ONSET_SHIFT)
-        self.hand_pos0 = P(fit.hand_pos[0] - shift * normal)
-        # The rest of the gap moves the object, as far as stage (a) itself moved it before the
-        # grasp (the engine keeps an untouched object where it starts; stage (a) only asks it
-        # to rest), and only across its support: lifted, a resting object would fall before
-        # the hand reaches it. Anywhere for an object the masks never saw before the grasp
-        # (carried into the view), where the hand first takes it.
-        if unseen_before_contact:
-            move = (gap - shift) * normal
-        else:
-            move = (gap - shift).clamp(max=_drift_before_contact(fit, contact)) * normal * _ACROSS
-        self.object_pos0 = P(clear_of_statics(fit.object_pos[0] + move, fit.object_rot[0], fit.object_size,
-                                              fit.static_pos, fit.static_rot, fit.static_size))
-        self.object_rot6 = P(rotation_to_6d(fit.object_rot[0]))
+        start = physical_start(fit, contact, timing, knots_per_second=knots_per_second, grasp_level=grasp_level,
+                               unseen_before_contact=unseen_before_contact, hand_loss=hand_loss)
+        P = torch.nn.Parameter
+        self.hand_rot6 = P(start.hand_rot6)
+        self.grasp0 = P(start.grasp0)
+        self.control = P(start.control)
+        self.hand_pos0 = P(start.hand_pos0)
+        self.object_pos0 = P(start.object_pos0)
+        self.object_rot6 = P(start.object_rot6)
         self.register_shape(fit)
-
-    def _fit_control(
-        self, fit: SceneTrajectories, contact: np.ndarray, frame_weight: np.ndarray, grasp_target: torch.Tensor,
-        basis: np.ndarray, dt: float,
-    ) -> torch.Tensor:
-        """Knot velocities (knots, 7) that reproduce stage (a)'s hand motion and the contact.
-
-        Positions and the grasp signal are integrals of the spline, linear in the knots, so
-        they are fitted in least squares on their integrated basis; contact frames weigh
-        more, because the tip must be inside the object there for the grasp to engage, and
-        positions are weighed by ``frame_weight`` (N,) besides. Angular velocities are fitted
-        to the frame-to-frame rotations.
-        """
-        spf = self.steps_per_frame
-        N = self.num_frames
-        cumulative = np.concatenate([np.zeros((1, basis.shape[1])), np.cumsum(basis, 0) * dt])[::spf]  # (N, knots)
-        ridge = 1e-6 * np.eye(basis.shape[1])
-        weight = np.sqrt(frame_weight * (1.0 + CONTACT_FIT_WEIGHT * np.asarray(contact, dtype=float)))[:, None]
-
-        def solve(design: np.ndarray, rhs: np.ndarray, w: np.ndarray | float = 1.0) -> np.ndarray:
-            design, rhs = w * design, w * rhs
-            return np.linalg.solve(design.T @ design + ridge, design.T @ rhs)
-
-        pos = fit.hand_pos.double().numpy()
-        linear = solve(cumulative, pos - pos[0], weight)
-        grasp = grasp_target.double().numpy()
-        grasp_rate = solve(cumulative, (grasp - grasp[0])[:, None])
-        R = fit.hand_rot.double()
-        omega = rotation_log(R[1:] @ R[:-1].transpose(-1, -2)).numpy() * self.fps  # (N - 1, 3)
-        mid_times = (np.arange(N - 1) + 0.5) / self.fps
-        mid_basis = natural_cubic_basis(basis.shape[1], (N - 1) / self.fps, mid_times)
-        angular = solve(mid_basis, omega)
-        return torch.as_tensor(np.concatenate([linear, angular, grasp_rate], 1), dtype=torch.float32)
-
-    def _grasp_onset_gap(
-        self, fit: SceneTrajectories, contact: np.ndarray, control: torch.Tensor, basis: np.ndarray, dt: float,
-        depth: float,
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        """How far [m] (0-d, >= 0) the simulated hand tip is from being ``depth`` inside the
-        object at the first contact frame, and along which normal (3,) of the object.
-
-        The spline only approximates stage (a)'s hand path, and stage (a) only asks for the
-        tip to be inside on average; millimetres decide whether the grasp switch saturates
-        (the latched switch holds what it reached, and one below 1 carries the object only
-        partly, lagging the hand). Moving the tip by ``-gap * normal`` (or the object by
-        ``+gap * normal``) closes it, along the normal of the object's face nearest to the
-        tip; once the grasp closes, the rigid carry keeps the depth.
-        """
-        onset = np.flatnonzero(contact)
-        if len(onset) == 0:
-            return torch.zeros(()), torch.zeros(3)
-        steps = int(onset[0]) * self.steps_per_frame
-        tip = fit.hand_pos[0] + dt * torch.as_tensor(basis[:steps].sum(0), dtype=torch.float32) @ control[:, :3]
-        pos, rot, size = fit.object_pos[0], fit.object_rot[0], fit.object_size
-        local = rot.T @ (tip - pos)
-        axis = int(torch.argmax(local.abs() - 0.5 * size))
-        normal = rot[:, axis] * torch.sign(local[axis])
-        depth = min(depth, 0.25 * float(size.min()))
-        distance = box_signed_distance(tip, pos, rot, size)
-        return (distance + depth).clamp_min(0.0), normal
 
     def cuboids(self) -> tuple[torch.Tensor, ...]:
         """Object size (3,), static centres (K, 3), rotations (K, 3, 3) and sizes (K, 3)."""
@@ -267,61 +171,6 @@ class PhysicalScene(SceneShape):
     def forward(self, simulate=simulate) -> PhysicalRollout:
         """Simulate the scene (pre-roll, the video, post-roll) with ``simulate`` (default: the Warp engine)."""
         return self.assemble(simulate(self.simulation_inputs(), **self.simulation_options()))
-
-
-def isolated_misfit_weights(hand_loss: np.ndarray) -> np.ndarray:
-    """Weights (N,) in (0, 1] of the frames in the hand spline's fit, from stage (a)'s hand
-    dIoU per frame ``hand_loss`` (N,): ``exp(-(excess / MISFIT_SCALE)^2)``, the excess being
-    the loss above its running median over 2 MISFIT_WINDOW + 1 frames.
-
-    Stage (a) places the hand anew in every frame; where it could not match one or two
-    frames' hand masks (an ambiguous silhouette), its path jumps there, and the physics
-    stage, which stays near the spline it starts from, would keep the jump. An isolated
-    misfit barely pulls the spline; a long stretch of poor fit (a cylinder against a real
-    hand's box) is the video's norm and keeps its weight.
-    """
-    loss = np.asarray(hand_loss, dtype=float)
-    if loss.ndim != 1 or not np.isfinite(loss).all():
-        raise ValueError(f"hand_loss must be (N,) finite values, got shape {loss.shape}")
-    window = np.lib.stride_tricks.sliding_window_view(np.pad(loss, MISFIT_WINDOW, mode="edge"), 2 * MISFIT_WINDOW + 1)
-    excess = (loss - np.median(window, axis=-1)).clip(min=0.0)
-    return np.exp(-((excess / MISFIT_SCALE) ** 2))
-
-
-def clear_of_statics(pos: torch.Tensor, rot: torch.Tensor, size: torch.Tensor, static_pos: torch.Tensor,
-                     static_rot: torch.Tensor, static_size: torch.Tensor) -> torch.Tensor:
-    """The object's centre ``pos`` (3,) [m] moved out of every static box its box overlaps, by
-    the shortest way out: across a side face, or up onto the top (:func:`static_exits`).
-
-    Stage (a) only asks the object to stay out of the static boxes; the engine makes it, and an
-    object started inside one is pushed out at once, knocked away from where the masks put it.
-    ``rot`` (3, 3), ``size`` (3,); statics (K, 3), (K, 3, 3) yawed only, (K, 3).
-    """
-    for k in range(len(static_pos)):
-        exits = static_exits(pos, rot, size, static_pos[k : k + 1], static_rot[k : k + 1], static_size[k : k + 1])[0]
-        if bool((exits > 0).all()):
-            way = int(torch.argmin(exits))
-            step = pos.new_zeros(3)
-            step[way // 2] = (exits[way] + START_CLEARANCE) * (-1.0 if way in (1, 3) else 1.0)
-            pos = pos + static_rot[k] @ step
-    return pos
-
-
-def grasp_window(contact: np.ndarray, lead: int) -> np.ndarray:
-    """(N,) bool: the ``contact`` (N,) frames and the ``lead`` frames before each run of them."""
-    window = np.asarray(contact, dtype=bool).copy()
-    for onset in np.flatnonzero(np.diff(np.concatenate([[False], window])) > 0):
-        window[max(0, onset - lead) : onset] = True
-    return window
-
-
-def _drift_before_contact(fit: SceneTrajectories, contact: np.ndarray) -> float:
-    """How far [m] stage (a)'s object centre is, at the first contact frame, from where it
-    starts (0 without contact)."""
-    onset = np.flatnonzero(contact)
-    if len(onset) == 0:
-        return 0.0
-    return float(torch.linalg.vector_norm(fit.object_pos[onset[0]] - fit.object_pos[0]))
 
 
 def make_physical_scene(
