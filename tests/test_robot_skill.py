@@ -178,6 +178,35 @@ def test_placements_are_ranked_short_of_full_stretch():
     assert reach_excess(base, [[key(0.75)], [key(0.6)]], COMFORT_REACH) == 0.0  # the best grasp pose's
 
 
+def test_open_fingers_beside_the_object_count_as_near_it_where_the_tcp_alone_is_clear():
+    from warpskill.robot.targets import OBJECT_CLEARANCE, _fingers_near_object
+
+    recon = truth("pick_up", 0)
+    top = float(recon.object_pos[0, 2] + 0.5 * recon.object_size[2])
+    side = recon.object_rot[0][:, 0]  # the object's local x, horizontal
+    beside = np.eye(4)
+    beside[:3, 2] = [0.0, 0.0, -1.0]  # pointing down
+    beside[:3, 3] = recon.object_pos[0] + side * (0.5 * recon.object_size[0] + OBJECT_CLEARANCE + 0.015)
+    beside[2, 3] = top - 0.01  # the finger tips below the object's top
+    # Fingers opening towards the object reach 4 cm from the TCP: into the clearance.
+    beside[:3, 1] = side
+    beside[:3, 0] = np.cross(beside[:3, 1], beside[:3, 2])
+    assert _fingers_near_object(recon, beside, 0.08)
+    assert not _fingers_near_object(recon, beside, 0.0)  # closed, the TCP is 1.5 cm beyond the clearance
+    # Opening along the object's face, the fingers stay as far from it as the TCP.
+    along = beside.copy()
+    along[:3, 1] = np.cross(along[:3, 2], side)
+    along[:3, 0] = np.cross(along[:3, 1], along[:3, 2])
+    assert not _fingers_near_object(recon, along, 0.08)
+    # High above the object's top (more than the fingers' length plus the clearance), nothing is near.
+    above = beside.copy()
+    above[:3, 3] = recon.object_pos[0]
+    above[2, 3] = top + OBJECT_CLEARANCE + 0.01
+    assert not _fingers_near_object(recon, above, 0.08)
+    above[2, 3] = top + OBJECT_CLEARANCE - 0.01
+    assert _fingers_near_object(recon, above, 0.08)
+
+
 def test_the_robot_never_follows_a_hand_path_through_the_object():
     from warpskill.robot.targets import APPROACH_TIME, OBJECT_CLEARANCE
 

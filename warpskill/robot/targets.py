@@ -9,8 +9,9 @@ The plan, sampled every :data:`~warpskill.robot.planner.DT`:
    sweep through a tall object's top before the contact); the join pose is where the robot
    takes up the demonstrated hand path, at most :data:`FOLLOW_TIME` s before the pre-grasp
    and never further than :data:`FOLLOW_RADIUS` from it (the free-hand motion far from the
-   object is not followed) nor inside the object (the reconstructed hand may pass through
-   it); the robot waits there until the demonstration reaches it;
+   object is not followed) nor where the open fingers come near the object (the
+   reconstructed hand may pass through it or close beside it); the robot waits there until
+   the demonstration reaches it;
 2. approach: the demonstrated tip path, shifted so that it ends at the pre-grasp pose
    (:data:`PREGRASP` back along the approach), then a straight move onto the grasp pose
    at the onset, never faster than :data:`APPROACH_TIME` (without ``follow_hand``, the
@@ -56,7 +57,8 @@ LEAD_SETTLE = 0.3  # [s]
 LEAD_RISE = 0.1  # [m] the lead-in passes this high above the join pose
 FOLLOW_TIME = 0.8  # [s] the demonstrated hand path is followed at most this long before the pre-grasp ...
 FOLLOW_RADIUS = 0.2  # [m] ... and only where it stays this close to the pre-grasp
-OBJECT_CLEARANCE = 0.02  # [m] ... and this far outside the object (at the TCP)
+OBJECT_CLEARANCE = 0.02  # [m] ... and with the open fingers this far outside the object
+FINGER_LENGTH = 0.045  # [m] of the Panda's fingers, from the tips (at the TCP) back to the hand
 PREGRASP = 0.08  # [m] pre-grasp stand-off along the approach
 APPROACH_TIME = 0.6  # [s] from the pre-grasp to the grasp pose
 RETREAT = 0.10  # [m] back-off along the approach after the release
@@ -147,14 +149,21 @@ def onto_release(scene: Scene, T_off: np.ndarray, size: np.ndarray, static: int 
     return placed
 
 
-def _in_object(recon: Reconstruction, point: np.ndarray) -> bool:
-    """Whether ``point`` (3,) lies within :data:`OBJECT_CLEARANCE` of the object where it rests (its first frame).
+def _fingers_near_object(recon: Reconstruction, T: np.ndarray, opening: float) -> bool:
+    """Whether the open gripper at TCP pose ``T`` (4, 4), fingers ``opening`` [m] apart, comes
+    within :data:`OBJECT_CLEARANCE` of the object where it rests (its first frame).
 
-    The reconstructed hand may pass through the object before the contact (the physics lets it);
-    the gripper following that path would knock the object over.
+    The reconstructed hand may pass through the object before the contact (the physics lets
+    it), or close beside it (a hand is narrower than an open gripper): the gripper following
+    that path would knock the object over. Each finger is taken as the segment from its tip
+    (at the TCP's height) :data:`FINGER_LENGTH` back along the approach, on either side of the
+    TCP along the closing axis (``T``'s y); the TCP itself is the segment's middle point.
     """
-    local = recon.object_rot[0].T @ (point - recon.object_pos[0])
-    return bool(np.all(np.abs(local) < 0.5 * recon.object_size + OBJECT_CLEARANCE))
+    across = np.linspace(-0.5, 0.5, 5)[:, None] * opening * T[:3, 1]  # (5, 3): the finger line through the TCP
+    up = np.array([0.0, FINGER_LENGTH])[:, None, None] * -T[:3, 2]  # (2, 1, 3): tip and top of the fingers
+    points = (T[:3, 3] + across + up).reshape(-1, 3)
+    local = (points - recon.object_pos[0]) @ recon.object_rot[0]
+    return bool(np.any(np.all(np.abs(local) < 0.5 * recon.object_size + OBJECT_CLEARANCE, axis=1)))
 
 
 def _interp_path(path: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
@@ -240,13 +249,14 @@ def plan_targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int
     t_pre = t_on - app_time
     path_shift = pregrasp[:3, 3] - _interp_path(recon.hand_pos, recon.t, t_pre)  # the hand path ends at the pre-grasp
     t_join = t_pre
-    if follow_hand:  # back along the demonstrated path while it stays near the pre-grasp and out of the object
+    opening = 0.0 if pose.kind == "push" else min(MAX_OPENING, pose.width + 0.02)
+    if follow_hand:  # back along the demonstrated path while it stays near the pre-grasp and the fingers clear of the object
         for tau in np.arange(t_pre, max(0.0, t_pre - FOLLOW_TIME) - 1e-9, -DT):
-            point = _interp_path(recon.hand_pos, recon.t, tau) + path_shift
-            if np.linalg.norm(point - pregrasp[:3, 3]) > FOLLOW_RADIUS or _in_object(recon, point):
+            T = G.copy()
+            T[:3, 3] = _interp_path(recon.hand_pos, recon.t, tau) + path_shift
+            if np.linalg.norm(T[:3, 3] - pregrasp[:3, 3]) > FOLLOW_RADIUS or _fingers_near_object(recon, T, opening):
                 break
             t_join = float(tau)
-    opening = 0.0 if pose.kind == "push" else min(MAX_OPENING, pose.width + 0.02)
     close_ramp = max(opening / (2 * FINGER_SPEED), DT)
     out = Targets([], [], [], [], 0, 0.0, 0.0, math.nan)
 
