@@ -5,13 +5,14 @@ output on the noisy demonstration), judged by :func:`warpskill.evaluate`, then t
 shared with ``warpskill bench something-else --robot``
 (:func:`warpskill.bench.end_to_end.robot_step`): a placo plan and its replay in each engine,
 judged by the same criteria, and (robust) once more in MuJoCo under each perturbation a real
-robot meets. Prints the success table (reconstruction, planned, replay per engine, robust,
+robot meets. Shows the success table (reconstruction, planned, replay per engine, robust,
 end to end), the planning and replay times (wall and CPU), how the engines agree
 (same verdict, distance of the final object positions) and the reason of every failure.
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
@@ -24,6 +25,7 @@ from warpskill.bench.end_to_end import (
     robot_step,
     timing_lines,
 )
+from warpskill.bench.report import show
 from warpskill.contract.actions import ACTIONS
 from warpskill.contract.evaluation import evaluate, success_table
 from warpskill.contract.reconstruction import Reconstruction
@@ -32,6 +34,8 @@ from warpskill.optimizer.options import OptimizeOptions
 from warpskill.optimizer.pipeline import optimize
 from warpskill.robot import prefer_headless_gl
 from warpskill.synthetic import make_demonstration
+
+logger = logging.getLogger(__name__)
 
 SOURCES: tuple[str, ...] = ("truth", "optimised")
 
@@ -64,7 +68,7 @@ def synthetic_reconstruction(action: str, seed: int, source: str, options: Optim
 def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, source: str = "truth",
                 engines: Sequence[str] = ("mujoco",), actions: Sequence[str] | None = None, out: Path | None = None,
                 video: bool = False, robust: bool = True) -> dict:
-    """Plan and replay every action x seed; print the success table per engine and the timings.
+    """Plan and replay every action x seed; log each, show the success table per engine and the timings.
 
     Each case goes through :func:`~warpskill.bench.end_to_end.robot_step`, as the videos of
     ``warpskill bench something-else --robot`` do.
@@ -109,28 +113,20 @@ def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, sourc
             cases.append((action, reconstructed, outcome))
             outcomes.append((action, seed, outcome))
             failures += [f"{action} seed {seed}: {miss}" for miss in outcome.misses()]
-            print(f"{action:<22} seed {seed}: {outcome.summary()[:160]}", flush=True)
+            logger.info("%-22s seed %d: %s", action, seed, outcome.summary()[:160])
 
     rows = robot_rows(cases, engines, robust=robust)
-    print()
-    print(f"reconstructions: {source}")
-    print(success_table(rows))
-    print()
-    for line in timing_lines([outcome for _, _, outcome in outcomes]):
-        print(line)
-    line = agreement_line([outcome for _, _, outcome in outcomes])
-    if line:
-        print(line)
+    robots = [outcome for _, _, outcome in outcomes]
+    show("", f"reconstructions: {source}", success_table(rows), "", *timing_lines(robots),
+         *filter(None, [agreement_line(robots)]))
     if failures:
-        print("failures:")
-        for line in failures:
-            print(f"  {line}")
-    planned = [outcome for _, _, outcome in outcomes if outcome.planned]
+        show("failures:", *(f"  {line}" for line in failures))
+    planned = [outcome for outcome in robots if outcome.planned]
     return {
         "rows": rows,
         "planning": [outcome.plan.planning_time for outcome in planned],
         "replay": {engine: [outcome.replays[engine].replay_time for outcome in planned] for engine in engines},
         "failures": failures,
         "outcomes": outcomes,
-        "agreement": agreement([outcome for _, _, outcome in outcomes]),
+        "agreement": agreement(robots),
     }

@@ -14,6 +14,7 @@ against the generator's ground truth. The tools are looked for in ``$WARPSKILL_T
 from __future__ import annotations
 
 import csv
+import logging
 import os
 import subprocess
 import sys
@@ -30,9 +31,9 @@ from warpskill.bench.outcomes import (
     judged,
     median_errors,
     record_failure,
-    record_outcomes,
     write_notes,
 )
+from warpskill.bench.report import record_outcomes, show
 from warpskill.contract.actions import ACTIONS
 from warpskill.contract.demonstration import TRUTH_PREFIX
 from warpskill.contract.evaluation import evaluate, success_table
@@ -40,6 +41,8 @@ from warpskill.contract.results_folder import ResultsFolder
 from warpskill.data.box_annotations import read_something_else, something_else_demonstration
 from warpskill.optimizer.options import OptimizeOptions
 from warpskill.optimizer.pipeline import optimize
+
+logger = logging.getLogger(__name__)
 
 GENERATOR = "synthdemo.py"
 ANNOTATOR = "synth_sthelse.py"
@@ -86,7 +89,7 @@ def bench_second_opinion(
     baseline: str | os.PathLike | None = None,
     save_baseline: str | os.PathLike | None = None,
 ) -> dict | None:
-    """Generate, annotate, read, reconstruct and judge; print the table and the errors.
+    """Generate, annotate, read, reconstruct and judge; log each case, show the table and the errors.
 
     Args:
         out: output folder (``demos/``, ``annotations/``, ``<video_id>/``, the outcome table).
@@ -106,7 +109,8 @@ def bench_second_opinion(
 
     folder = find_tools(tools)
     if folder is None:
-        print(f"second opinion skipped: {GENERATOR} and {ANNOTATOR} not found (give --tools or $WARPSKILL_TOOLS)")
+        logger.warning("second opinion skipped: %s and %s not found (give --tools or $WARPSKILL_TOOLS)",
+                       GENERATOR, ANNOTATOR)
         return None
     out = Path(out)
     actions = list(actions or ACTIONS)
@@ -132,15 +136,13 @@ def bench_second_opinion(
         except Exception as exc:  # one bad case must not stop the benchmark: report it, go on
             outcome = failed_case(case, video.action, record_failure(out / case, exc))
         outcomes.append(outcome)
-        verdict = outcome.verdict()
         scale = f"scale {outcome.errors['scale']:.2f}" if "scale" in outcome.errors else outcome.note
-        print(f"{case:<24} {verdict}  {scale}, {time.perf_counter() - start:.1f} s", flush=True)
+        logger.info("%-24s %s  %s, %.1f s", case, outcome.verdict(), scale, time.perf_counter() - start)
     rows = {ROW: [(o.action, o.success) for o in outcomes]}
-    print()
-    print(success_table(rows))
+    show("", success_table(rows))
     medians = median_errors(outcomes)
     if medians:
-        print("median errors: " + ", ".join(f"{key} {value:.3f}" for key, value in medians.items()))
+        show("median errors: " + ", ".join(f"{key} {value:.3f}" for key, value in medians.items()))
     record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
     return {"rows": rows, "outcomes": outcomes}
 
