@@ -41,6 +41,7 @@ from warpskill.bench.outcomes import (
     CaseFailed,
     CaseOutcome,
     RobotRecord,
+    camera_frame_errors,
     failed_case,
     judged,
     record_failure,
@@ -130,7 +131,7 @@ def bench_something_else(
     if on_ray:
         made, where = _made_on_ray(table, vids, out, options, pictures, workers, address, seconds)
     else:
-        made = {vid: functools.partial(_reconstruct, table[vid], out / vid, options, pictures, seconds) for vid in vids}
+        made = {vid: functools.partial(reconstruct_here, table[vid], out / vid, options, pictures, seconds) for vid in vids}
         where = "serial, in this process"
     outcomes = [run_case(vid, table[vid].action, out / vid, made[vid], step) for vid in vids]
     failures = {o.case: o.note for o in outcomes if o.failed_checks == ("error",)}
@@ -188,20 +189,24 @@ class Reconstructed:
 
 
 def run_case(vid: str, action: str | None, folder: Path, reconstruct: Callable[[], Reconstructed],
-             step: _RobotStep | None = None) -> CaseOutcome:
-    """One video of the benchmark: its reconstruction (``reconstruct()``, made in this process or
-    taken from a Ray task), evaluated for ``action``, its line logged, then (with ``step``) the
-    robot step. A video that fails is its reason, its traceback kept in ``folder``; one without an
-    action has an empty one (it has no column in the table)."""
+             step: _RobotStep | None = None, truth: Callable[[], dict] | None = None) -> CaseOutcome:
+    """One annotated video of a benchmark (``bench something-else``, ``bench second-opinion``): its
+    reconstruction (``reconstruct()``, made in this process or taken from a Ray task), evaluated for
+    ``action`` (and, with ``truth()``, its ground truth: the errors, :func:`camera_frame_errors`),
+    its line logged, then (with ``step``) the robot step. A video that fails is its reason, its
+    traceback kept in ``folder``; one without an action has an empty one (it has no column in the
+    table)."""
     try:
         made = reconstruct()
         evaluation = evaluate(made.recon, action)
+        errors = camera_frame_errors(made.recon, truth()) if truth is not None else None
     except Exception as exc:  # one bad video must not stop the benchmark: report it, go on
         outcome = failed_case(vid, action or "", record_failure(folder, exc))
         logger.info("%6s %-20s ERROR %s", vid, action or "?", outcome.note)
         return outcome if step is None or not action else dataclasses.replace(outcome, robot=step.skip(vid, action))
-    outcome = judged(vid, evaluation)
-    logger.info("%6s %-20s %s  %s", vid, action, outcome.verdict(), made.detail)
+    outcome = judged(vid, evaluation, errors)
+    scale = f", scale {outcome.errors['scale']:.2f}" if "scale" in outcome.errors else ""
+    logger.info("%6s %-20s %s  %s%s", vid, action, outcome.verdict(), made.detail, scale)
     if step is None:
         return outcome
     return dataclasses.replace(outcome, robot=step.run(vid, action, made.recon, outcome.success, folder))
@@ -221,8 +226,8 @@ def _demonstration(video, folder: Path):
     return demo, notes
 
 
-def _reconstruct(video, folder: Path, options: OptimizeOptions, pictures: bool,
-                 seconds: dict[str, float]) -> Reconstructed:
+def reconstruct_here(video, folder: Path, options: OptimizeOptions, pictures: bool,
+                     seconds: dict[str, float]) -> Reconstructed:
     """A video's reconstruction in this process: the finished one in ``folder``, or optimised,
     saved and pictured (the optimisation's time [s] goes to ``seconds[video id]``)."""
     start = time.perf_counter()
