@@ -20,6 +20,7 @@ flips since a baseline table are shown.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 from collections.abc import Mapping, Sequence
@@ -57,7 +58,7 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
                      engines: Sequence[str] = ("mujoco",), seed: int = 0, device: str = "cpu",
                      robust: bool = True, out: str | os.PathLike | None = None,
                      baseline: str | os.PathLike | None = None,
-                     save_baseline: str | os.PathLike | None = None) -> dict:
+                     save_baseline: str | os.PathLike | None = None) -> GeneralizeRun:
     """Plan and replay every skill in ``layouts`` random layouts; log each, show the table and the misses.
 
     Args:
@@ -73,9 +74,7 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
             flips against; where to save a copy of this run's (:func:`~warpskill.bench.report.record_outcomes`).
 
     Returns:
-        ``{"rows": {row: [(action, ok)]}, "misses": [str], "outcomes": [RobotOutcome],
-        "cases": [CaseOutcome]}``, rows ``planned``, ``replay <engine>``, and ``robust`` when
-        computed.
+        The run's :class:`GeneralizeRun`.
 
     Raises:
         ValueError: ``robust`` without the ``mujoco`` engine.
@@ -110,7 +109,25 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
     if misses:
         show("misses:", *(f"  {line}" for line in misses))
     record_outcomes(out, cases, baseline=baseline, save_baseline=save_baseline)
-    return {"rows": rows, "misses": misses, "outcomes": outcomes, "cases": cases}
+    return GeneralizeRun(rows, misses, outcomes, cases)
+
+
+@dataclasses.dataclass(frozen=True)
+class GeneralizeRun:
+    """What :func:`bench_generalize` found.
+
+    Attributes:
+        rows: the success table's rows (``planned``, ``replay <engine>``, and ``robust`` when
+            computed) -> [(action, ok)] per layout.
+        misses: why each layout missed, one line each.
+        outcomes: the robot step's outcome of each layout that could be laid out.
+        cases: each layout's row of the outcome table (:class:`~warpskill.bench.outcomes.CaseOutcome`).
+    """
+
+    rows: dict[str, list[tuple[str, bool]]]
+    misses: list[str]
+    outcomes: list[RobotOutcome]
+    cases: list[CaseOutcome]
 
 
 def _short(name: str) -> str:

@@ -12,12 +12,14 @@ end to end), the planning and replay times (wall and CPU), how the engines agree
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
 from warpskill.bench.end_to_end import (
+    RobotOutcome,
     agreement,
     agreement_line,
     check_robust_engines,
@@ -67,7 +69,7 @@ def synthetic_reconstruction(action: str, seed: int, source: str, options: Optim
 
 def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, source: str = "truth",
                 engines: Sequence[str] = ("mujoco",), actions: Sequence[str] | None = None, out: Path | None = None,
-                video: bool = False, robust: bool = True) -> dict:
+                video: bool = False, robust: bool = True) -> RobotRun:
     """Plan and replay every action x seed; log each, show the success table per engine and the timings.
 
     Each case goes through :func:`~warpskill.bench.end_to_end.robot_step`, as the videos of
@@ -89,9 +91,7 @@ def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, sourc
             ``mujoco`` among the engines).
 
     Returns:
-        ``{"rows": {row: [(action, ok)]}, "planning": [s], "replay": {engine: [s]}, "failures": [str],
-        "outcomes": [(action, seed, RobotOutcome)], "agreement": dict}`` (rows: ``reconstruction``,
-        ``planned``, ``replay <engine>``, ``robust``, ``end to end``; agreement: :func:`~warpskill.bench.end_to_end.agreement`).
+        The run's :class:`RobotRun`.
     """
 
     if robust:
@@ -121,12 +121,23 @@ def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, sourc
          *filter(None, [agreement_line(robots)]))
     if failures:
         show("failures:", *(f"  {line}" for line in failures))
-    planned = [outcome for outcome in robots if outcome.planned]
-    return {
-        "rows": rows,
-        "planning": [outcome.plan.planning_time for outcome in planned],
-        "replay": {engine: [outcome.replays[engine].replay_time for outcome in planned] for engine in engines},
-        "failures": failures,
-        "outcomes": outcomes,
-        "agreement": agreement(robots),
-    }
+    return RobotRun(rows, outcomes, failures, agreement(robots))
+
+
+@dataclasses.dataclass(frozen=True)
+class RobotRun:
+    """What :func:`bench_robot` found.
+
+    Attributes:
+        rows: the success table's rows (``reconstruction``, ``planned``, ``replay <engine>``,
+            ``robust``, ``end to end``) -> [(action, ok)] per case.
+        outcomes: (action, seed, :class:`~warpskill.bench.end_to_end.RobotOutcome`) per case (its
+            plan's planning time, its replays' times).
+        failures: why each case missed, one line each.
+        agreement: how the engines agree (:func:`~warpskill.bench.end_to_end.agreement`).
+    """
+
+    rows: dict[str, list[tuple[str, bool]]]
+    outcomes: list[tuple[str, int, RobotOutcome]]
+    failures: list[str]
+    agreement: dict

@@ -80,7 +80,7 @@ def bench_second_opinion(
     tools: str | os.PathLike | None = None,
     baseline: str | os.PathLike | None = None,
     save_baseline: str | os.PathLike | None = None,
-) -> dict | None:
+) -> list[CaseOutcome] | None:
     """Generate, annotate, read, reconstruct and judge; log each case, show the table and the errors.
 
     Args:
@@ -95,8 +95,8 @@ def bench_second_opinion(
         save_baseline: also save the outcome table here.
 
     Returns:
-        ``{"rows": {row: [(action, success)]}, "outcomes": [CaseOutcome]}``, or None when
-        the tools are absent.
+        The :class:`~warpskill.bench.outcomes.CaseOutcome` of each scene, or None when the tools
+        are absent.
     """
 
     folder = find_tools(tools)
@@ -122,7 +122,7 @@ def bench_second_opinion(
     if medians:
         show("median errors: " + ", ".join(f"{key} {value:.3f}" for key, value in medians.items()))
     record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
-    return {"rows": rows, "outcomes": outcomes}
+    return outcomes
 
 
 def _ids(path: Path) -> dict[str, str]:

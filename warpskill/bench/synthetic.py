@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import statistics
 import tempfile
@@ -13,7 +14,7 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from warpskill.bench.outcomes import camera_frame_errors, judged, verdict
+from warpskill.bench.outcomes import CaseOutcome, camera_frame_errors, judged, verdict
 from warpskill.bench.report import record_outcomes, show
 from warpskill.contract.actions import ACTIONS
 from warpskill.contract.demonstration import Demonstration
@@ -75,7 +76,7 @@ def bench_synthetic(
     baseline: Path | None = None,
     save_baseline: Path | None = None,
     nouns: bool = False,
-) -> dict:
+) -> SyntheticRun:
     """Reconstruct synthetic demonstrations of each action, log each, show the paper's table.
 
     Rows: initialisation only, and the full method; columns: the actions (k/n), total, %.
@@ -98,6 +99,9 @@ def bench_synthetic(
             full method's per-case outcomes are also written to ``out`` (``outcomes.json``).
         nouns: give each demonstration an ``object_noun`` whose typical size is its object's
             times a log-normal spread (:func:`spread_noun`), named in the case's note.
+
+    Returns:
+        The run's :class:`SyntheticRun`.
     """
     check_known({name: 1.0 for name in known})
     options = options or OptimizeOptions()
@@ -137,7 +141,24 @@ def bench_synthetic(
          f"time per demonstration (both stages, {options.device or 'cpu'}): median {statistics.median(seconds):.1f} s, "
          f"max {max(seconds):.1f} s")
     record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
-    return {"rows": rows, "errors": errors, "seconds": seconds, "outcomes": outcomes}
+    return SyntheticRun(rows, errors, seconds, outcomes)
+
+
+@dataclasses.dataclass(frozen=True)
+class SyntheticRun:
+    """What :func:`bench_synthetic` found.
+
+    Attributes:
+        rows: the success table's rows (``initialisation only``, ``full method``) -> [(action, success)].
+        errors: the same rows -> each case's :func:`camera_frame_errors`, in case order.
+        seconds: each case's time [s], both stages.
+        outcomes: the full method's :class:`~warpskill.bench.outcomes.CaseOutcome` of each case.
+    """
+
+    rows: dict[str, list[tuple[str, bool]]]
+    errors: dict[str, list[dict[str, float]]]
+    seconds: list[float]
+    outcomes: list[CaseOutcome]
 
 
 def _case(action: str, seed: int, *, noise: str, input: str, scenarios: str, nouns: bool) -> tuple[Demonstration, str]:
