@@ -2,6 +2,7 @@
 
 import contextlib
 import io
+import logging
 import re
 import shutil
 
@@ -103,6 +104,14 @@ def test_init_only_stops_before_the_physics_stage(demo_file, tmp_path, capsys):
     assert set(np.unique(recon.grasped)) <= {0.0, 1.0}  # from contact, not a soft switch
     assert sorted(path.name for path in out.iterdir()) == ["checkpoint.pt", "reconstruction.npz"]
     _evaluation_line(capsys.readouterr().out, "pick_up")
+
+
+def test_the_librarys_warnings_show_as_the_commands_lines_while_it_runs(demo_file, tmp_path, capsys):
+    argv = ["optimize", str(demo_file), "-o", str(tmp_path), "--init-only", "--no-pictures", "--quiet",
+            "--set", "config.init_iterations=2", "--object-noun", "unobtainium brick"]
+    assert main(argv) == 0
+    assert "object noun 'unobtainium brick': no typical size known, so no size prior\n" in capsys.readouterr().out
+    assert logging.getLogger("warpskill").handlers == []  # the command's console goes with it
 
 
 def _garbage(path):

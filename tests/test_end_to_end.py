@@ -50,7 +50,7 @@ def test_bench_something_else_robot_columns(tmp_path, capsys):
     assert robot.Replay.load(tmp_path / VIDEO / "replay_mujoco.npz").success
     assert (tmp_path / VIDEO / "replay.mp4").is_file() or (tmp_path / VIDEO / "replay.png").is_file()
     [case] = load_outcomes(tmp_path).values()  # the robot's verdict is in the outcome table
-    assert case.robot_success and case.robot["replays"] == {"mujoco": True} and case.robot["misses"] == []
+    assert case.robot_success and case.robot.replays == {"mujoco": True} and case.robot.misses == ()
 
 
 def test_bench_something_else_robot_reports_a_missing_plan_in_one_line(tmp_path, capsys, monkeypatch):
@@ -67,14 +67,14 @@ def test_bench_something_else_robot_reports_a_missing_plan_in_one_line(tmp_path,
     result = bench_something_else(*(assets.path(name) for name in EXAMPLE), out=tmp_path, robot=True,
                                   engines=("mujoco", "newton"), pictures=False)
     printed = capsys.readouterr().out
-    outcome = result["robot"][VIDEO]
+    outcome = result.robot[VIDEO]
     assert not outcome.planned and outcome.reason == "frame 15: no feasible grasp: the cuboid is out of reach"
     assert f"| {VIDEO} | put_next_to | ok | none: {outcome.reason} | - | - |" in printed
-    assert result["rows"]["full method (box masks)"] == [("put_next_to", True)]
-    assert result["rows"]["planned"] == result["rows"]["end to end"] == [("put_next_to", False)]
-    assert result["agreement"]["cases"] == 0
-    [case] = result["outcomes"]
-    assert case.success and case.robot_success is False and case.robot["misses"] == [f"plan: {outcome.reason}"]
+    assert result.rows["full method (box masks)"] == [("put_next_to", True)]
+    assert result.rows["planned"] == result.rows["end to end"] == [("put_next_to", False)]
+    assert result.agreement["cases"] == 0
+    [case] = result.outcomes
+    assert case.success and case.robot_success is False and case.robot.misses == (f"plan: {outcome.reason}",)
 
     # A video without a reconstruction fails every robot row.
     rows = robot_rows([("pick_up", True, RobotOutcome(reason="x")), ("pick_up", False, None)], ("mujoco", "newton"))

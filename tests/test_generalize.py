@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 
 import numpy as np
@@ -105,13 +106,13 @@ def test_generalize_two_layouts(capsys, tmp_path):
     from warpskill.bench.outcomes import load_outcomes
 
     result = bench_generalize({"pick_up": truth("pick_up")}, layouts=2, seed=1, out=tmp_path)
-    rows = result["rows"]
+    rows = result.rows
     assert set(rows) == {"planned", "replay mujoco", "robust"}
     assert all(len(results) == 2 and {a for a, _ in results} == {"pick_up"} for results in rows.values())
     for k in range(2):  # robust only where it succeeded, succeeded only where it was planned
         assert rows["robust"][k][1] <= rows["replay mujoco"][k][1] <= rows["planned"][k][1]
     misses = sum(not ok for results in rows.values() for _, ok in results)
-    assert (misses == 0) == (not result["misses"])
+    assert (misses == 0) == (not result.misses)
     out = capsys.readouterr().out
     assert "| planned" in out and "| robust" in out
     table = load_outcomes(tmp_path)  # one row per layout, its robot verdicts as in the table above
@@ -119,10 +120,11 @@ def test_generalize_two_layouts(capsys, tmp_path):
     for k, case in enumerate(table.values()):
         assert case.success == rows["replay mujoco"][k][1]
         assert case.robot_success == rows["robust"][k][1]
-        assert case.robot["misses"] == result["outcomes"][k].misses()
+        assert list(case.robot.misses) == result.outcomes[k].misses()
 
 
-def test_a_skill_no_layout_fits_counts_as_unplanned_and_says_why(capsys):
+def test_a_skill_no_layout_fits_counts_as_unplanned_and_says_why(caplog):
+    caplog.set_level(logging.INFO, logger="warpskill")
     pytest.importorskip("mujoco")
     from warpskill.bench.generalize import bench_generalize
 
@@ -131,12 +133,12 @@ def test_a_skill_no_layout_fits_counts_as_unplanned_and_says_why(capsys):
     # layout is refused, and the benchmark counts the skill's layouts as misses.
     recon.static_size[0, :2] = 2.0
     result = bench_generalize({"into-the-box": recon}, layouts=2, engines=("mujoco",), robust=False)
-    assert result["rows"]["planned"] == [("put_behind", False)] * 2
-    assert result["rows"]["replay mujoco"] == [("put_behind", False)] * 2
-    [miss] = result["misses"]
+    assert result.rows["planned"] == [("put_behind", False)] * 2
+    assert result.rows["replay mujoco"] == [("put_behind", False)] * 2
+    [miss] = result.misses
     assert miss.startswith("into-the-box: every layout: ")
-    assert "into-the-box: no layout: " in capsys.readouterr().out
-    assert [(c.case, c.failed_checks, c.robot_success) for c in result["cases"]] == \
+    assert any(line.startswith("into-the-box: no layout: ") for line in caplog.messages)
+    assert [(c.case, c.failed_checks, c.robot_success) for c in result.cases] == \
         [("into-the-box/layout 0", ("plan",), False), ("into-the-box/layout 1", ("plan",), False)]
 
 

@@ -66,25 +66,23 @@ def test_the_evidence_carries_the_typical_edges_only_where_the_prior_applies():
     assert paper[0] == MIN_OBJECT_SIZE and paper[1:] == pytest.approx(tuple(SIZES["paper"].edges[1:]))
 
 
-def test_an_unknown_noun_adds_no_prior_and_says_so_in_one_line(capsys):
+def test_an_unknown_noun_adds_no_prior_and_says_so_in_one_line(caplog):
     demo = make_demonstration("pick_up", seed=1, input="boxes", **SMALL)
     small = OptimizeConfig(init_iterations=2, rival_rungs=())
     recon = optimize(demo, progress=False, init_only=True, config=small, object_noun="unobtainium brick")
     plain = optimize(demo, progress=False, init_only=True, config=small)
-    assert capsys.readouterr().out.strip().splitlines() == [
-        "object noun 'unobtainium brick': no typical size known, so no size prior"]
+    assert caplog.messages == ["object noun 'unobtainium brick': no typical size known, so no size prior"]
     np.testing.assert_array_equal(recon.object_size, plain.object_size)
     assert OptimizeOptions.from_json(str(recon.options)).object_noun == "unobtainium brick"
 
 
-def test_a_noun_beside_a_known_length_adds_no_prior_and_says_so_in_one_line(capsys):
+def test_a_noun_beside_a_known_length_adds_no_prior_and_says_so_in_one_line(caplog):
     demo = make_demonstration("pick_up", seed=1, input="boxes", **SMALL)
     small = OptimizeConfig(init_iterations=2, rival_rungs=())
     known = {"object_height": 0.1}
     recon = optimize(demo, progress=False, init_only=True, config=small, object_noun="mug", known=known)
     plain = optimize(demo, progress=False, init_only=True, config=small, known=known)
-    assert capsys.readouterr().out.strip().splitlines() == [
-        "object noun 'mug': the known object_height fixes the scale, so no size prior"]
+    assert caplog.messages == ["object noun 'mug': the known object_height fixes the scale, so no size prior"]
     np.testing.assert_array_equal(recon.object_size, plain.object_size)
 
 

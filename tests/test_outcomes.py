@@ -8,15 +8,16 @@ from test_evaluate import scene
 
 from warpskill.bench.outcomes import (
     CaseOutcome,
+    RobotRecord,
     evaluate_folder,
     failed_case,
     flip_report,
     flips,
     folder_outcomes,
     load_outcomes,
-    record_outcomes,
     write_outcomes,
 )
+from warpskill.bench.report import record_outcomes
 from warpskill.bench.second_opinion import find_tools, read_truth
 from warpskill.cli import main
 
@@ -47,8 +48,7 @@ def test_flips_name_fixed_and_broken_cases_with_their_failed_checks():
 
 
 def _robot(planned=True, mujoco=True, newton=True, robust=None, misses=()):
-    return {"planned": planned, "replays": {"mujoco": mujoco, "newton": newton}, "robust": robust,
-            "misses": list(misses), "substitute": ""}
+    return RobotRecord(planned, {"mujoco": mujoco, "newton": newton}, robust, tuple(misses))
 
 
 def test_the_robot_step_is_kept_in_the_table_and_its_flips_are_named(tmp_path):
@@ -68,6 +68,19 @@ def test_the_robot_step_is_kept_in_the_table_and_its_flips_are_named(tmp_path):
     assert "robot step: 2 case(s) in both, 1 -> 1 succeed; 1 fixed, 1 broken" in report
     assert "fixed  3107" in report and "was missing: newton replay fails moved_left" in report
     assert "broken 19" in report and "now missing: not robust: fails under mass x2" in report
+
+
+def test_a_table_of_older_code_with_the_robot_step_as_a_plain_object_still_loads(tmp_path):
+    old = {"case": "19", "action": "put_next_to", "success": True, "failed_checks": [], "errors": {"noun_ratio": 1.2},
+           "note": "", "robot": {"planned": True, "replays": {"mujoco": True, "newton": False}, "robust": None,
+                                 "misses": ["newton replay fails moved_left"], "substitute": ""}}
+    no_robot = dict(old, case="601", robot={})
+    (tmp_path / "outcomes.json").write_text(json.dumps({"cases": [old, no_robot]}))
+    table = load_outcomes(tmp_path)
+    assert table["19"].robot == _robot(newton=False, misses=["newton replay fails moved_left"])
+    assert table["19"].robot_success is False and table["601"].robot is None
+    write_outcomes(tmp_path / "again", list(table.values()))  # written back as this code writes it, same outcomes
+    assert load_outcomes(tmp_path / "again") == table
 
 
 def test_an_output_folder_of_older_code_is_re_evaluated_as_a_baseline(tmp_path, capsys):

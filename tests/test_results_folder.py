@@ -2,6 +2,7 @@
 
 import dataclasses
 import errno
+import logging
 import os
 import subprocess
 import sys
@@ -48,32 +49,32 @@ def test_writes_are_atomic_and_leave_no_temporary_file(truth, tmp_path):
     assert _temporary_files(keeper.path) == []
 
 
-def test_a_corrupt_result_is_reported_in_one_line_and_not_finished(tmp_path, capsys):
+def test_a_corrupt_result_is_reported_in_one_line_and_not_finished(tmp_path, caplog):
     keeper = ResultsFolder(tmp_path)
     keeper.reconstruction.write_bytes(b"PK\x03\x04 not really a zip archive")
     assert keeper.finished_reconstruction() is None
     assert keeper.finished_replay() is None  # missing: not finished, nothing to say
-    [line] = capsys.readouterr().out.splitlines()
+    [line] = caplog.messages
     assert line.startswith(f"{keeper.reconstruction} is corrupt (not a readable .npz archive (BadZipFile")
     assert line.endswith("): redoing it")
 
 
-def test_a_reconstruction_made_with_other_options_is_not_finished(truth, tmp_path, capsys):
+def test_a_reconstruction_made_with_other_options_is_not_finished(truth, tmp_path, caplog):
     asked = OptimizeOptions(device="cpu", seed=1)
     keeper = ResultsFolder(tmp_path)
     keeper.save(dataclasses.replace(truth, options=np.array(asked.to_json())), keeper.reconstruction)
     assert keeper.finished_reconstruction(asked.to_json()) is not None
     assert keeper.finished_reconstruction(dataclasses.replace(asked, device="cuda").to_json()) is not None
     assert keeper.finished_reconstruction() is not None  # no options asked: any will do
-    assert capsys.readouterr().out == ""
+    assert caplog.messages == []
     other = asked.with_settings(["config.init_iterations=4"])
     assert keeper.finished_reconstruction(other.to_json()) is None
     assert keeper.finished_reconstruction(dataclasses.replace(asked, seed=2).to_json()) is None
-    lines = capsys.readouterr().out.splitlines()
-    assert lines == [f"{keeper.reconstruction}: made with other options; redoing the step"] * 2
+    assert caplog.messages == [f"{keeper.reconstruction}: made with other options; redoing the step"] * 2
+    caplog.clear()
     keeper.save(truth, keeper.reconstruction)  # records no options: made elsewhere, taken as it is
     assert keeper.finished_reconstruction(asked.to_json()) is not None
-    assert capsys.readouterr().out == ""
+    assert caplog.messages == []
 
 
 def test_a_full_disk_keeps_the_previous_result_and_says_so(truth, tmp_path, monkeypatch):
@@ -95,7 +96,8 @@ def test_a_full_disk_keeps_the_previous_result_and_says_so(truth, tmp_path, monk
     assert not keeper.initialisation.exists() and _temporary_files(keeper.path) == []
 
 
-def test_a_second_process_waits_for_the_lock_and_the_result_is_whole(truth, tmp_path, capsys):
+def test_a_second_process_waits_for_the_lock_and_the_result_is_whole(truth, tmp_path, caplog):
+    caplog.set_level(logging.INFO, logger="warpskill")
     folder, source = tmp_path / "x", tmp_path / "source.npz"
     truth.save(source)
     first = subprocess.Popen([sys.executable, "-c", HOLDER, str(folder), str(source)], stdout=subprocess.PIPE, text=True)
@@ -111,7 +113,7 @@ def test_a_second_process_waits_for_the_lock_and_the_result_is_whole(truth, tmp_
     finally:
         first.wait(timeout=120)
     assert first.returncode == 0
-    assert capsys.readouterr().out == f"{folder}: being written by pid {first.pid}; waiting for it to finish\n"
+    assert caplog.messages == [f"{folder}: being written by pid {first.pid}; waiting for it to finish"]
     assert waited > 0.3 and written_first.fps == truth.fps
     assert ResultsFolder(folder).finished_reconstruction().fps == 2 * truth.fps
     assert _temporary_files(folder) == []

@@ -144,3 +144,29 @@ def test_the_development_videos_all_load():
         assert demo.action == video.action and demo.contact.sum() == np.diff(video.phases["action"]) + 1
         two_objects = video.action.startswith("put")
         assert demo.num_static == int(two_objects)
+
+
+def test_each_video_is_one_run_case_its_failure_one_line_and_its_traceback_kept_where_it_ran(tmp_path):
+    from warpskill.bench.outcomes import CaseFailed
+    from warpskill.bench.something_else import Reconstructed, run_case
+    from warpskill.contract.results_folder import ResultsFolder
+    from warpskill.synthetic import make_demonstration
+
+    truth = Reconstruction(**make_demonstration("pick_up", seed=0, noise="none").truth)
+    made = run_case("7", "pick_up", tmp_path, lambda: Reconstructed(truth, "done before, 0.1 s, 0 note(s)"))
+    assert (made.case, made.action, made.success, made.failed_checks, made.robot) == ("7", "pick_up", True, (), None)
+
+    def unreadable():
+        raise DemonstrationError("video 8: frame 3\n  has no box")
+
+    failed = run_case("8", "pick_up", tmp_path, unreadable)
+    assert (failed.success, failed.failed_checks) == (False, ("error",))
+    assert failed.note == "DemonstrationError: video 8: frame 3 has no box"
+    assert "Traceback" in ResultsFolder(tmp_path).error.read_text()
+
+    def failed_in_its_task():  # a Ray task's failure: its reason as it is, recorded where it ran
+        raise CaseFailed("OptimizeError: NaN loss")
+
+    (tmp_path / "ray").mkdir()
+    assert run_case("9", None, tmp_path / "ray", failed_in_its_task).note == "OptimizeError: NaN loss"
+    assert not ResultsFolder(tmp_path / "ray").error.exists()

@@ -9,9 +9,12 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import logging
 import os
 from pathlib import Path
 from typing import Iterator
+
+logger = logging.getLogger(__name__)
 
 __all__ = ["hold_lock"]
 
@@ -75,5 +78,5 @@ def _acquire(handle, folder: Path) -> None:
     handle.seek(0)
     pid = handle.read().strip()
     holder = f"pid {pid}" if pid.isdigit() else "another process"
-    print(f"{folder}: being written by {holder}; waiting for it to finish", flush=True)
+    logger.info("%s: being written by %s; waiting for it to finish", folder, holder)
     fcntl.flock(handle, fcntl.LOCK_EX)

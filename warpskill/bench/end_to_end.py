@@ -22,17 +22,13 @@ from typing import Sequence
 
 import numpy as np
 
+from warpskill.bench.outcomes import RobotRecord, one_line, verdict
 from warpskill.contract.results_folder import ResultsFolder
 from warpskill.contract.skill import LayoutError
 from warpskill.robot import PlanError, prefer_headless_gl, record, replay, retarget
 from warpskill.robot.perturbation import PERTURBATIONS
 
 ENGINES: tuple[str, ...] = ("mujoco", "newton")
-
-
-def one_line(error: BaseException) -> str:
-    """An error as one line: its message with every run of whitespace (newlines too) made one space."""
-    return " ".join(str(error).split()) or type(error).__name__
 
 
 @dataclasses.dataclass
@@ -90,13 +86,11 @@ class RobotOutcome:
         broken = self.broken_by()
         return lines + ([f"not robust: fails under {', '.join(broken)}"] if broken else [])
 
-    def record(self) -> dict:
-        """The outcome as a JSON-ready record for the outcome table (``CaseOutcome.robot``): ``planned``,
-        ``replays`` (engine -> success), ``robust`` (None where not tried), ``misses`` (:meth:`misses`)
-        and ``substitute`` (the plan's note on the object the robot handles instead, or empty)."""
-        return {"planned": self.planned, "replays": {engine: self.success(engine) for engine in self.replays},
-                "robust": self.robust if self.perturbed else None, "misses": self.misses(),
-                "substitute": self.plan.note if self.planned else ""}
+    def record(self) -> RobotRecord:
+        """The outcome as the outcome table keeps it (``CaseOutcome.robot``)."""
+        return RobotRecord(self.planned, {engine: self.success(engine) for engine in self.replays},
+                           self.robust if self.perturbed else None, tuple(self.misses()),
+                           self.plan.note if self.planned else "")
 
     def agree(self) -> bool:
         """Whether every engine run gives the same verdict."""
@@ -121,7 +115,7 @@ class RobotOutcome:
         where = "" if plan.offset is None else (f", at ({plan.offset[0]:.2f}, {plan.offset[1]:.2f}) m "
                                                 f"{np.degrees(plan.yaw):.0f} deg")
         resized = ", substituted object" if plan.note else ""
-        verdicts = [f"{engine} {'ok  ' if result.success else 'fail'} {result.replay_time:5.1f} s"
+        verdicts = [f"{engine} {verdict(result.success)} {result.replay_time:5.1f} s"
                     for engine, result in self.replays.items()]
         return (f"planned {plan.planning_time:4.1f} s ({plan.grasp_name}{where}{resized}); " + "; ".join(verdicts))
 

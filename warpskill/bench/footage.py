@@ -13,6 +13,7 @@ the box; an empty mask counts 0).
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
 from pathlib import Path
 
@@ -21,6 +22,8 @@ import numpy as np
 from warpskill.contract.demonstration import DemonstrationError
 from warpskill.data.box_annotations import read_box_annotations
 from warpskill.data.readers import read_video
+
+logger = logging.getLogger(__name__)
 
 ANNOTATIONS = "annotations.json"
 SAME_OBJECT_IOU = 0.5
@@ -207,7 +210,7 @@ def bench_footage(folder: str | os.PathLike, out: str | os.PathLike | None = Non
                   quiet: bool = False) -> dict[str, ClipScores]:
     """Each clip of a real-footage folder outlined as a hurried user would
     (:func:`hurried_outline`), its masks made as ``warpskill run`` makes them
-    (:func:`warpskill.data.footage.footage_masks`), compared with the boxes; prints a
+    (:func:`warpskill.data.footage.footage_masks`), compared with the boxes; shows a
     table per clip and pooled, writes ``OUT/outcomes.json`` (a clip succeeds when every
     role is on its box in :data:`SHARE_TARGET` of its frames and the hand-free frames stay
     clear in :data:`CLEAR_TARGET`) and the flips since ``baseline``.
@@ -219,7 +222,8 @@ def bench_footage(folder: str | os.PathLike, out: str | os.PathLike | None = Non
 
     from tqdm import tqdm
 
-    from warpskill.bench.outcomes import CaseOutcome, failed_case, record_outcomes
+    from warpskill.bench.outcomes import CaseOutcome, failed_case
+    from warpskill.bench.report import record_outcomes, show
     from warpskill.data.footage import footage_masks
 
     scores, outcomes = {}, []
@@ -230,12 +234,12 @@ def bench_footage(folder: str | os.PathLike, out: str | os.PathLike | None = Non
             found = footage_masks(clip.frames, key_frame, key_masks)
         except DemonstrationError as error:
             outcomes.append(failed_case(clip.clip_id, "footage", str(error)))
-            print(f"{clip.clip_id}: {error}")
+            logger.warning("%s: %s", clip.clip_id, error)
             continue
         scores[clip.clip_id] = score = score_clip(clip, found.found_hand, found.objects, found.contact,
                                                   time.perf_counter() - start)
         outcomes.append(_outcome(clip.clip_id, score, CaseOutcome))
-    print(footage_table(scores))
+    show(footage_table(scores))
     record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
     return scores
 

@@ -10,23 +10,26 @@ as ``bench robot`` does). A plan that succeeds in every engine is replayed in Mu
 more under each of :data:`~warpskill.robot.perturbation.PERTURBATIONS` (mass x0.5 and x2,
 friction -+30 %, the object 1 cm and 5 deg off); it is *robust* when it succeeds under all.
 
-Prints, per action, planned / succeeded (per engine) / robust as a success table, how the
+Shows, per action, planned / succeeded (per engine) / robust as a success table, how the
 engines agree, and the reason of every miss (the plan's error, the failed checks, the
 perturbations that broke it). With ``out``, one outcome row per layout (case ``<name>/layout
 <k>``, :class:`~warpskill.bench.outcomes.CaseOutcome`: success = replayed in every engine,
 its ``robot`` record with the misses and the substitute) goes to ``OUT/outcomes.json``, and the
-flips since a baseline table are printed.
+flips since a baseline table are shown.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import logging
 import os
 from collections.abc import Mapping, Sequence
 from itertools import islice
 from pathlib import Path
 
 from warpskill.bench.end_to_end import RobotOutcome, agreement_line, check_robust_engines, robot_step
-from warpskill.bench.outcomes import CaseOutcome, record_outcomes
+from warpskill.bench.outcomes import CaseOutcome
+from warpskill.bench.report import record_outcomes, show
 from warpskill.contract.evaluation import success_table
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
@@ -35,6 +38,8 @@ from warpskill.export.layouts import layouts as random_layouts
 from warpskill.robot.skill_layout import apply_skill, skill_from
 
 __all__ = ["bench_generalize"]
+
+logger = logging.getLogger(__name__)
 
 
 def _verdicts(outcome: RobotOutcome, engines: Sequence[str], robust: bool) -> dict[str, bool]:
@@ -53,8 +58,8 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
                      engines: Sequence[str] = ("mujoco",), seed: int = 0, device: str = "cpu",
                      robust: bool = True, out: str | os.PathLike | None = None,
                      baseline: str | os.PathLike | None = None,
-                     save_baseline: str | os.PathLike | None = None) -> dict:
-    """Plan and replay every skill in ``layouts`` random layouts; print the table and the misses.
+                     save_baseline: str | os.PathLike | None = None) -> GeneralizeRun:
+    """Plan and replay every skill in ``layouts`` random layouts; log each, show the table and the misses.
 
     Args:
         recons: name -> reconstruction (each with a known action).
@@ -66,12 +71,10 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
             in MuJoCo once more under each perturbation (needs ``mujoco`` among the engines).
         out: folder of the outcome table (None: none written).
         baseline, save_baseline: an earlier run's outcome table (or its folder) to print the
-            flips against; where to save a copy of this run's (:func:`~warpskill.bench.outcomes.record_outcomes`).
+            flips against; where to save a copy of this run's (:func:`~warpskill.bench.report.record_outcomes`).
 
     Returns:
-        ``{"rows": {row: [(action, ok)]}, "misses": [str], "outcomes": [RobotOutcome],
-        "cases": [CaseOutcome]}``, rows ``planned``, ``replay <engine>``, and ``robust`` when
-        computed.
+        The run's :class:`GeneralizeRun`.
 
     Raises:
         ValueError: ``robust`` without the ``mujoco`` engine.
@@ -93,26 +96,38 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
                 done += 1
                 _count(rows, skill.action, verdicts)
                 misses += [f"{name} layout {k} ({layout.describe()}): {reason}" for reason in outcome.misses()]
-                print(f"{name} layout {k}: " + ", ".join(f"{row} {'yes' if ok else 'no'}"
-                                                         for row, ok in verdicts.items()), flush=True)
+                logger.info("%s layout %d: %s", name, k, ", ".join(f"{row} {'yes' if ok else 'no'}"
+                                                                   for row, ok in verdicts.items()))
         except LayoutError as error:  # no layout fits this skill (e.g. its path runs into the static box)
             unplanned = RobotOutcome(reason=str(error))
             for k in range(done, layouts):
                 _count(rows, skill.action, _verdicts(unplanned, engines, robust))
                 cases.append(_case(f"{_short(name)}/layout {k}", skill.action, unplanned))
             misses.append(f"{name}: every layout: {error}")
-            print(f"{name}: no layout: {error}", flush=True)
-    print()
-    print(success_table(rows))
-    line = agreement_line(outcomes)
-    if line:
-        print(line)
+            logger.info("%s: no layout: %s", name, error)
+    show("", success_table(rows), *filter(None, [agreement_line(outcomes)]))
     if misses:
-        print("misses:")
-        for line in misses:
-            print(f"  {line}")
+        show("misses:", *(f"  {line}" for line in misses))
     record_outcomes(out, cases, baseline=baseline, save_baseline=save_baseline)
-    return {"rows": rows, "misses": misses, "outcomes": outcomes, "cases": cases}
+    return GeneralizeRun(rows, misses, outcomes, cases)
+
+
+@dataclasses.dataclass(frozen=True)
+class GeneralizeRun:
+    """What :func:`bench_generalize` found.
+
+    Attributes:
+        rows: the success table's rows (``planned``, ``replay <engine>``, and ``robust`` when
+            computed) -> [(action, ok)] per layout.
+        misses: why each layout missed, one line each.
+        outcomes: the robot step's outcome of each layout that could be laid out.
+        cases: each layout's row of the outcome table (:class:`~warpskill.bench.outcomes.CaseOutcome`).
+    """
+
+    rows: dict[str, list[tuple[str, bool]]]
+    misses: list[str]
+    outcomes: list[RobotOutcome]
+    cases: list[CaseOutcome]
 
 
 def _short(name: str) -> str:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from warpskill.bench.report import show
 from warpskill.bench.timing import timed
 from warpskill.contract.camera import Intrinsics
 from warpskill.engine.simulation import simulate
@@ -78,10 +79,10 @@ def bench_kernels(device: str = "cpu", repeats: int = 5) -> list[dict]:
                      rate=f"{pixels / median / 1e6:,.1f} Mpx/s")
             )
 
-    print(f"warpskill kernel benchmarks on {device} (median of {repeats}; first call includes compilation)")
-    print(f"{'kernel':<24} {'mode':<17} {'first [s]':>10} {'median [ms]':>12}  rate")
+    show(f"warpskill kernel benchmarks on {device} (median of {repeats}; first call includes compilation)")
+    show(f"{'kernel':<24} {'mode':<17} {'first [s]':>10} {'median [ms]':>12}  rate")
     for r in rows:
-        print(f"{r['kernel']:<24} {r['mode']:<17} {r['first_s']:>10.3f} {1e3 * r['median_s']:>12.2f}  {r['rate']}")
+        show(f"{r['kernel']:<24} {r['mode']:<17} {r['first_s']:>10.3f} {1e3 * r['median_s']:>12.2f}  {r['rate']}")
     return rows
 
 

@@ -17,7 +17,7 @@ import json
 import operator
 import os
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +39,44 @@ object's largest edge over its noun's typical one, ``hand_ratio``: over the hand
 :func:`~warpskill.bench.rulers.hand_ruler_ratio`)."""
 
 
+def verdict(ok: bool, failed_checks: Sequence[str] | None = None) -> str:
+    """A printed verdict: ``ok  `` or ``fail``, the failed checks in brackets where given."""
+    if ok:
+        return "ok  "
+    return "fail" if failed_checks is None else "fail (" + ", ".join(failed_checks) + ")"
+
+
+@dataclasses.dataclass(frozen=True)
+class RobotRecord:
+    """The robot step of one case, as the outcome table keeps it
+    (:meth:`~warpskill.bench.end_to_end.RobotOutcome.record`).
+
+    Attributes:
+        planned: whether a Panda plan was found.
+        replays: engine -> whether its replay achieved the action, in the order run.
+        robust: whether it also succeeded under every perturbation; None where not tried.
+        misses: why it missed, one line each (empty: it succeeded everywhere it was tried).
+        substitute: the plan's note on the object the robot handles instead, or empty.
+    """
+
+    planned: bool
+    replays: dict[str, bool] = dataclasses.field(default_factory=dict)
+    robust: bool | None = None
+    misses: tuple[str, ...] = ()
+    substitute: str = ""
+
+    @property
+    def success(self) -> bool:
+        """Planned, every replay and (where tried) every perturbed one succeeded."""
+        return bool(self.planned and self.replays and all(self.replays.values()) and self.robust is not False)
+
+    @classmethod
+    def from_json(cls, row: dict | None) -> RobotRecord | None:
+        """The record of an outcome table's ``robot`` cell; None for none (``null``, or the ``{}`` of
+        older tables)."""
+        return cls(**dict(row, misses=tuple(row["misses"]))) if row else None
+
+
 @dataclasses.dataclass(frozen=True)
 class CaseOutcome:
     """How one case of a benchmark ended.
@@ -50,8 +88,7 @@ class CaseOutcome:
         failed_checks: the criteria it failed (``error`` when there was no reconstruction).
         errors: key errors against the ground truth ([m], [rad], scale), empty without one.
         note: why there is no reconstruction, or empty.
-        robot: the robot step where it ran (:meth:`~warpskill.bench.end_to_end.RobotOutcome.record`:
-            ``planned``, ``replays``, ``robust``, ``misses``, ``substitute``), else empty.
+        robot: the robot step where it ran (:class:`RobotRecord`), else None.
     """
 
     case: str
@@ -60,21 +97,28 @@ class CaseOutcome:
     failed_checks: tuple[str, ...] = ()
     errors: dict[str, float] = dataclasses.field(default_factory=dict)
     note: str = ""
-    robot: dict = dataclasses.field(default_factory=dict)
+    robot: RobotRecord | None = None
 
     @property
     def robot_success(self) -> bool | None:
-        """Whether the robot achieved the action: planned, every replay and (where tried) every
-        perturbed one succeeded; None where the robot step did not run."""
-        if not self.robot:
-            return None
-        replays = self.robot.get("replays", {})
-        return bool(self.robot.get("planned") and replays and all(replays.values())
-                    and self.robot.get("robust") is not False)
+        """Whether the robot achieved the action (:attr:`RobotRecord.success`); None where the robot
+        step did not run."""
+        return None if self.robot is None else self.robot.success
 
     def verdict(self) -> str:
         """The printed verdict: ``ok  `` or ``fail (`` the failed checks ``)``."""
-        return "ok  " if self.success else "fail (" + ", ".join(self.failed_checks) + ")"
+        return verdict(self.success, self.failed_checks)
+
+    def to_json(self) -> dict:
+        """The outcome as a row of ``outcomes.json``."""
+        return dict(dataclasses.asdict(self), failed_checks=list(self.failed_checks),
+                    robot=None if self.robot is None else dict(dataclasses.asdict(self.robot),
+                                                               misses=list(self.robot.misses)))
+
+    @classmethod
+    def from_json(cls, row: dict) -> CaseOutcome:
+        """An outcome from a row of ``outcomes.json``, this code's or older code's."""
+        return cls(**dict(row, failed_checks=tuple(row["failed_checks"]), robot=RobotRecord.from_json(row.get("robot"))))
 
 
 def judged(case: str, evaluation: Evaluation, errors: dict[str, float] | None = None) -> CaseOutcome:
@@ -94,12 +138,25 @@ def write_notes(folder: Path, notes: list[str]) -> None:
     ResultsFolder(folder).write_text(folder / NOTES, "".join(note + "\n" for note in notes))
 
 
-def record_failure(folder: Path, error: BaseException) -> str:
+class CaseFailed(Exception):
+    """A case that failed elsewhere (a Ray task), its reason already recorded there."""
+
+
+def record_failure(folder: Path, error: BaseException, error_file: str | None = None) -> str:
     """The one-line reason of a case's ``error``, its traceback kept in ``folder``'s error file
-    where the folder exists (call from the ``except`` block)."""
+    (or ``folder/error_file``) where the folder exists (call from the ``except`` block); a
+    :class:`CaseFailed` is its reason as it is, recorded where it failed."""
+    if isinstance(error, CaseFailed):
+        return str(error)
     if folder.exists():
-        ResultsFolder(folder).record_error(traceback.format_exc())
-    return f"{type(error).__name__}: {error}"
+        keeper = ResultsFolder(folder)
+        keeper.write_text(folder / error_file if error_file else keeper.error, traceback.format_exc())
+    return f"{type(error).__name__}: {one_line(error)}"
+
+
+def one_line(error: BaseException) -> str:
+    """An error as one line: its message with every run of whitespace (newlines too) made one space."""
+    return " ".join(str(error).split()) or type(error).__name__
 
 
 def write_outcomes(folder: str | os.PathLike, outcomes: list[CaseOutcome]) -> Path:
@@ -115,13 +172,13 @@ def write_outcomes(folder: str | os.PathLike, outcomes: list[CaseOutcome]) -> Pa
             cells = [f"{o.errors[key]:.4f}" if key in o.errors else "" for key in ERROR_KEYS]
             robot = "" if o.robot_success is None else int(o.robot_success)
             writer.writerow([o.case, o.action, int(o.success), " ".join(o.failed_checks), *cells, o.note, robot,
-                             "; ".join(o.robot.get("misses", []))])
+                             "; ".join(o.robot.misses if o.robot else ())])
     return path
 
 
 def save_outcomes(path: str | os.PathLike, outcomes: list[CaseOutcome]) -> None:
     """Write an outcome table as JSON (``{"cases": [...]}``) to ``path``."""
-    rows = [dict(dataclasses.asdict(o), failed_checks=list(o.failed_checks)) for o in outcomes]
+    rows = [o.to_json() for o in outcomes]
     Path(path).write_text(json.dumps({"cases": rows}, indent=1) + "\n")
 
 
@@ -147,7 +204,7 @@ def load_outcomes(source: str | os.PathLike) -> dict[str, CaseOutcome]:
         return {o.case: o for o in outcomes}
     try:
         rows = json.loads(source.read_text())["cases"]
-        outcomes = [CaseOutcome(**dict(row, failed_checks=tuple(row["failed_checks"]))) for row in rows]
+        outcomes = [CaseOutcome.from_json(row) for row in rows]
     except (json.JSONDecodeError, KeyError, TypeError) as exc:
         raise ValueError(f"baseline {source}: not an outcome table ({type(exc).__name__}: {exc})") from None
     return {o.case: o for o in outcomes}
@@ -240,17 +297,11 @@ def flips(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome],
 def flip_report(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome], name: str = "baseline") -> str:
     """Lines naming every case that flipped since ``baseline``, both ways, with the failed checks;
     then the robot step's flips where both tables have it, with its misses."""
-    fixed, broken = flips(baseline, current)
+    lines = _flip_lines(f"since {name}", baseline, current, operator.attrgetter("success"),
+                        lambda o: f"failing {_checks(o)}")
+    lines += _flip_lines("robot step", baseline, current, operator.attrgetter("robot_success"),
+                         lambda o: f"missing: {'; '.join(o.robot.misses)}", optional=True)
     shared = set(baseline) & set(current)
-    before = sum(baseline[c].success for c in shared)
-    after = sum(current[c].success for c in shared)
-    lines = [f"since {name}: {len(shared)} case(s) in both, {before} -> {after} succeed; "
-             f"{len(fixed)} fixed, {len(broken)} broken"]
-    for before_o, now in fixed:
-        lines.append(f"  fixed  {now.case:<24} {now.action:<20} was failing {_checks(before_o)}")
-    for before_o, now in broken:
-        lines.append(f"  broken {now.case:<24} {now.action:<20} now failing {_checks(now)}")
-    lines += _robot_flip_lines(baseline, current)
     only_now, only_before = sorted(set(current) - shared), sorted(set(baseline) - shared)
     if only_now:
         lines.append(f"  not in {name}: {_listed(only_now)}")
@@ -259,20 +310,19 @@ def flip_report(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome
     return "\n".join(lines)
 
 
-def _robot_flip_lines(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome]) -> list[str]:
-    """The robot step's part of :func:`flip_report` (nothing where no case has it in both tables)."""
-    both = [c for c in set(baseline) & set(current)
-            if baseline[c].robot_success is not None and current[c].robot_success is not None]
-    if not both:
+def _flip_lines(title: str, baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome],
+                verdict: Callable[[CaseOutcome], bool | None], why: Callable[[CaseOutcome], str], *,
+                optional: bool = False) -> list[str]:
+    """One ``verdict``'s part of :func:`flip_report`: the count over the cases both tables judge, then
+    each flip with ``why`` it fails; nothing where ``optional`` and no case is judged in both."""
+    both = [c for c in set(baseline) & set(current) if None not in (verdict(baseline[c]), verdict(current[c]))]
+    if optional and not both:
         return []
-    fixed, broken = flips(baseline, current, operator.attrgetter("robot_success"))
-    lines = [f"robot step: {len(both)} case(s) in both, {sum(baseline[c].robot_success for c in both)} -> "
-             f"{sum(current[c].robot_success for c in both)} succeed; {len(fixed)} fixed, {len(broken)} broken"]
-    for before_o, now in fixed:
-        lines.append(f"  fixed  {now.case:<24} {now.action:<20} was missing: {'; '.join(before_o.robot['misses'])}")
-    for _, now in broken:
-        lines.append(f"  broken {now.case:<24} {now.action:<20} now missing: {'; '.join(now.robot['misses'])}")
-    return lines
+    fixed, broken = flips(baseline, current, verdict)
+    lines = [f"{title}: {len(both)} case(s) in both, {sum(verdict(baseline[c]) for c in both)} -> "
+             f"{sum(verdict(current[c]) for c in both)} succeed; {len(fixed)} fixed, {len(broken)} broken"]
+    lines += [f"  fixed  {now.case:<24} {now.action:<20} was {why(before)}" for before, now in fixed]
+    return lines + [f"  broken {now.case:<24} {now.action:<20} now {why(now)}" for _, now in broken]
 
 
 def _listed(cases: list[str], most: int = 10) -> str:
@@ -285,23 +335,6 @@ def median_errors(outcomes: list[CaseOutcome]) -> dict[str, float]:
     """Median of each key error over the cases that have it."""
     return {key: float(np.median([o.errors[key] for o in outcomes if key in o.errors]))
             for key in ERROR_KEYS if any(key in o.errors for o in outcomes)}
-
-
-def record_outcomes(out: str | os.PathLike | None, outcomes: list[CaseOutcome], *,
-                    baseline: str | os.PathLike | None = None,
-                    save_baseline: str | os.PathLike | None = None) -> None:
-    """What every success benchmark does with its outcomes at the end: write the table into
-    ``out`` (if any), print the flips since ``baseline`` (if any), save a copy as
-    ``save_baseline`` (if any)."""
-    if out is not None:
-        print(f"\noutcome table: {write_outcomes(out, outcomes)}")
-    if baseline is not None:
-        print()
-        print(flip_report(load_outcomes(baseline), {o.case: o for o in outcomes}, name=str(baseline)))
-    if save_baseline is not None:
-        Path(save_baseline).parent.mkdir(parents=True, exist_ok=True)
-        save_outcomes(save_baseline, outcomes)
-        print(f"baseline saved: {save_baseline}")
 
 
 def _checks(outcome: CaseOutcome) -> str:

@@ -5,18 +5,21 @@ output on the noisy demonstration), judged by :func:`warpskill.evaluate`, then t
 shared with ``warpskill bench something-else --robot``
 (:func:`warpskill.bench.end_to_end.robot_step`): a placo plan and its replay in each engine,
 judged by the same criteria, and (robust) once more in MuJoCo under each perturbation a real
-robot meets. Prints the success table (reconstruction, planned, replay per engine, robust,
+robot meets. Shows the success table (reconstruction, planned, replay per engine, robust,
 end to end), the planning and replay times (wall and CPU), how the engines agree
 (same verdict, distance of the final object positions) and the reason of every failure.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import logging
 from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
 from warpskill.bench.end_to_end import (
+    RobotOutcome,
     agreement,
     agreement_line,
     check_robust_engines,
@@ -24,6 +27,7 @@ from warpskill.bench.end_to_end import (
     robot_step,
     timing_lines,
 )
+from warpskill.bench.report import show
 from warpskill.contract.actions import ACTIONS
 from warpskill.contract.evaluation import evaluate, success_table
 from warpskill.contract.reconstruction import Reconstruction
@@ -32,6 +36,8 @@ from warpskill.optimizer.options import OptimizeOptions
 from warpskill.optimizer.pipeline import optimize
 from warpskill.robot import prefer_headless_gl
 from warpskill.synthetic import make_demonstration
+
+logger = logging.getLogger(__name__)
 
 SOURCES: tuple[str, ...] = ("truth", "optimised")
 
@@ -63,8 +69,8 @@ def synthetic_reconstruction(action: str, seed: int, source: str, options: Optim
 
 def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, source: str = "truth",
                 engines: Sequence[str] = ("mujoco",), actions: Sequence[str] | None = None, out: Path | None = None,
-                video: bool = False, robust: bool = True) -> dict:
-    """Plan and replay every action x seed; print the success table per engine and the timings.
+                video: bool = False, robust: bool = True) -> RobotRun:
+    """Plan and replay every action x seed; log each, show the success table per engine and the timings.
 
     Each case goes through :func:`~warpskill.bench.end_to_end.robot_step`, as the videos of
     ``warpskill bench something-else --robot`` do.
@@ -85,9 +91,7 @@ def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, sourc
             ``mujoco`` among the engines).
 
     Returns:
-        ``{"rows": {row: [(action, ok)]}, "planning": [s], "replay": {engine: [s]}, "failures": [str],
-        "outcomes": [(action, seed, RobotOutcome)], "agreement": dict}`` (rows: ``reconstruction``,
-        ``planned``, ``replay <engine>``, ``robust``, ``end to end``; agreement: :func:`~warpskill.bench.end_to_end.agreement`).
+        The run's :class:`RobotRun`.
     """
 
     if robust:
@@ -109,28 +113,31 @@ def bench_robot(options: OptimizeOptions | None = None, *, seeds: int = 3, sourc
             cases.append((action, reconstructed, outcome))
             outcomes.append((action, seed, outcome))
             failures += [f"{action} seed {seed}: {miss}" for miss in outcome.misses()]
-            print(f"{action:<22} seed {seed}: {outcome.summary()[:160]}", flush=True)
+            logger.info("%-22s seed %d: %s", action, seed, outcome.summary()[:160])
 
     rows = robot_rows(cases, engines, robust=robust)
-    print()
-    print(f"reconstructions: {source}")
-    print(success_table(rows))
-    print()
-    for line in timing_lines([outcome for _, _, outcome in outcomes]):
-        print(line)
-    line = agreement_line([outcome for _, _, outcome in outcomes])
-    if line:
-        print(line)
+    robots = [outcome for _, _, outcome in outcomes]
+    show("", f"reconstructions: {source}", success_table(rows), "", *timing_lines(robots),
+         *filter(None, [agreement_line(robots)]))
     if failures:
-        print("failures:")
-        for line in failures:
-            print(f"  {line}")
-    planned = [outcome for _, _, outcome in outcomes if outcome.planned]
-    return {
-        "rows": rows,
-        "planning": [outcome.plan.planning_time for outcome in planned],
-        "replay": {engine: [outcome.replays[engine].replay_time for outcome in planned] for engine in engines},
-        "failures": failures,
-        "outcomes": outcomes,
-        "agreement": agreement([outcome for _, _, outcome in outcomes]),
-    }
+        show("failures:", *(f"  {line}" for line in failures))
+    return RobotRun(rows, outcomes, failures, agreement(robots))
+
+
+@dataclasses.dataclass(frozen=True)
+class RobotRun:
+    """What :func:`bench_robot` found.
+
+    Attributes:
+        rows: the success table's rows (``reconstruction``, ``planned``, ``replay <engine>``,
+            ``robust``, ``end to end``) -> [(action, ok)] per case.
+        outcomes: (action, seed, :class:`~warpskill.bench.end_to_end.RobotOutcome`) per case (its
+            plan's planning time, its replays' times).
+        failures: why each case missed, one line each.
+        agreement: how the engines agree (:func:`~warpskill.bench.end_to_end.agreement`).
+    """
+
+    rows: dict[str, list[tuple[str, bool]]]
+    outcomes: list[tuple[str, int, RobotOutcome]]
+    failures: list[str]
+    agreement: dict

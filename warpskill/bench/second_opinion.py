@@ -6,40 +6,35 @@ annotations and phases) are run as separate programs: into ``OUT/demos`` and
 ``OUT/annotations``. The annotation files then go through the real reader
 (:func:`~warpskill.data.box_annotations.read_something_else`,
 :func:`~warpskill.data.box_annotations.something_else_demonstration`), exactly as a real
-video's, are reconstructed into ``OUT/<video_id>/`` and judged by the success criteria and
-against the generator's ground truth. The tools are looked for in ``$WARPSKILL_TOOLS`` or
+video's (:func:`~warpskill.bench.something_else.run_case`), are reconstructed into
+``OUT/<action>_s<seed>/`` and judged by the success criteria and against the generator's
+ground truth. The tools are looked for in ``$WARPSKILL_TOOLS`` or
 ``../shared/tools`` next to the repository; without them the benchmark says so and stops.
 """
 
 from __future__ import annotations
 
 import csv
+import functools
+import logging
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
-from warpskill.bench.outcomes import (
-    CaseOutcome,
-    camera_frame_errors,
-    failed_case,
-    judged,
-    median_errors,
-    record_failure,
-    record_outcomes,
-    write_notes,
-)
+from warpskill.bench.outcomes import CaseOutcome, median_errors
+from warpskill.bench.report import record_outcomes, show
+from warpskill.bench.something_else import reconstruct_here, run_case
 from warpskill.contract.actions import ACTIONS
 from warpskill.contract.demonstration import TRUTH_PREFIX
-from warpskill.contract.evaluation import evaluate, success_table
-from warpskill.contract.results_folder import ResultsFolder
-from warpskill.data.box_annotations import read_something_else, something_else_demonstration
+from warpskill.contract.evaluation import success_table
+from warpskill.data.box_annotations import read_something_else
 from warpskill.optimizer.options import OptimizeOptions
-from warpskill.optimizer.pipeline import optimize
+
+logger = logging.getLogger(__name__)
 
 GENERATOR = "synthdemo.py"
 ANNOTATOR = "synth_sthelse.py"
@@ -85,11 +80,11 @@ def bench_second_opinion(
     tools: str | os.PathLike | None = None,
     baseline: str | os.PathLike | None = None,
     save_baseline: str | os.PathLike | None = None,
-) -> dict | None:
-    """Generate, annotate, read, reconstruct and judge; print the table and the errors.
+) -> list[CaseOutcome] | None:
+    """Generate, annotate, read, reconstruct and judge; log each case, show the table and the errors.
 
     Args:
-        out: output folder (``demos/``, ``annotations/``, ``<video_id>/``, the outcome table).
+        out: output folder (``demos/``, ``annotations/``, ``<action>_s<seed>/``, the outcome table).
         seeds: the generator's seeds.
         actions: a subset of the actions (default: all 9).
         exit_view: pick-ups lifted out of the top of the view (the generator's ``--exit-view``).
@@ -100,13 +95,14 @@ def bench_second_opinion(
         save_baseline: also save the outcome table here.
 
     Returns:
-        ``{"rows": {row: [(action, success)]}, "outcomes": [CaseOutcome]}``, or None when
-        the tools are absent.
+        The :class:`~warpskill.bench.outcomes.CaseOutcome` of each scene, or None when the tools
+        are absent.
     """
 
     folder = find_tools(tools)
     if folder is None:
-        print(f"second opinion skipped: {GENERATOR} and {ANNOTATOR} not found (give --tools or $WARPSKILL_TOOLS)")
+        logger.warning("second opinion skipped: %s and %s not found (give --tools or $WARPSKILL_TOOLS)",
+                       GENERATOR, ANNOTATOR)
         return None
     out = Path(out)
     actions = list(actions or ACTIONS)
@@ -114,35 +110,19 @@ def bench_second_opinion(
     table = read_something_else(annotations / "annotations.json", annotations / "phases.csv",
                                 annotations / "actions.csv")
     demo_paths = _ids(annotations / "ids.csv")
+    options = options or OptimizeOptions()
     outcomes: list[CaseOutcome] = []
-    for vid, video in table.items():
-        case = Path(demo_paths[vid]).stem
-        start = time.perf_counter()
-        try:
-            demo, notes = something_else_demonstration(video)
-            write_notes(out / case, notes)
-            keeper = ResultsFolder(out / case)
-            with keeper.locked():
-                recon = keeper.finished_reconstruction()
-                if recon is None:
-                    recon = optimize(demo, options, progress=False, checkpoint=keeper.checkpoint)
-                    keeper.save(recon, keeper.reconstruction)
-            errors = camera_frame_errors(recon, read_truth(demo_paths[vid]))
-            outcome = judged(case, evaluate(recon, video.action), errors)
-        except Exception as exc:  # one bad case must not stop the benchmark: report it, go on
-            outcome = failed_case(case, video.action, record_failure(out / case, exc))
-        outcomes.append(outcome)
-        verdict = outcome.verdict()
-        scale = f"scale {outcome.errors['scale']:.2f}" if "scale" in outcome.errors else outcome.note
-        print(f"{case:<24} {verdict}  {scale}, {time.perf_counter() - start:.1f} s", flush=True)
+    for vid, video in table.items():  # as bench something-else runs a video, judged against the truth too
+        case = out / Path(demo_paths[vid]).stem
+        made = functools.partial(reconstruct_here, video, case, options, False, {})
+        outcomes.append(run_case(case.name, video.action, case, made, truth=functools.partial(read_truth, demo_paths[vid])))
     rows = {ROW: [(o.action, o.success) for o in outcomes]}
-    print()
-    print(success_table(rows))
+    show("", success_table(rows))
     medians = median_errors(outcomes)
     if medians:
-        print("median errors: " + ", ".join(f"{key} {value:.3f}" for key, value in medians.items()))
+        show("median errors: " + ", ".join(f"{key} {value:.3f}" for key, value in medians.items()))
     record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
-    return {"rows": rows, "outcomes": outcomes}
+    return outcomes
 
 
 def _ids(path: Path) -> dict[str, str]:

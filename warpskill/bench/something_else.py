@@ -20,24 +20,35 @@ reconstruction and every replay meet the criteria), and a per-video table follow
 from __future__ import annotations
 
 import dataclasses
+import functools
+import logging
 import os
 import statistics
 import time
-import traceback
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 from warpskill.bench.end_to_end import (
     ENGINES,
     RobotOutcome,
     agreement,
     agreement_line,
-    one_line,
     robot_rows,
     robot_step,
     timing_lines,
 )
-from warpskill.bench.outcomes import CaseOutcome, folder_outcomes, judged, record_failure, record_outcomes, write_notes
+from warpskill.bench.outcomes import (
+    CaseFailed,
+    CaseOutcome,
+    RobotRecord,
+    camera_frame_errors,
+    failed_case,
+    judged,
+    record_failure,
+    verdict,
+    write_notes,
+)
+from warpskill.bench.report import record_outcomes, show
 from warpskill.bench.rulers import hand_ruler_ratio
 from warpskill.cluster import INSTALL_HINT, optimize_folder, ray_available
 from warpskill.contract.evaluation import evaluate, success_table
@@ -56,6 +67,8 @@ from warpskill.optimizer.options import OptimizeOptions
 from warpskill.optimizer.pipeline import optimize
 from warpskill.robot import prefer_headless_gl
 from warpskill.visual.pictures import save_pictures
+
+logger = logging.getLogger(__name__)
 
 ROW = "full method (box masks)"
 NEAR_TYPICAL = 1.5
@@ -78,8 +91,11 @@ def bench_something_else(
     video: bool = False,
     baseline: str | os.PathLike | None = None,
     save_baseline: str | os.PathLike | None = None,
-) -> dict:
-    """Reconstruct and evaluate every annotated video; print progress and the table.
+) -> SomethingElseRun:
+    """Reconstruct and evaluate every annotated video; log the progress, show the table.
+
+    Every video goes through :func:`run_case`, serially or over Ray alike: only where its
+    reconstruction is made differs.
 
     Args:
         annotations, phases, actions: the files of :func:`~warpskill.data.box_annotations.read_something_else`.
@@ -95,46 +111,105 @@ def bench_something_else(
         robot: also plan each reconstruction for the Panda and replay it (see above).
         engines: the replay engines of ``robot``.
         video: with ``robot``, also write ``OUT/<id>/replay.mp4`` (MuJoCo's rendering of the plan).
-        baseline, save_baseline: see :func:`warpskill.bench.outcomes.record_outcomes`; the
+        baseline, save_baseline: see :func:`warpskill.bench.report.record_outcomes`; the
             per-video outcome table is written to ``OUT/outcomes.json`` in any case.
 
     Returns:
-        ``{"rows": {row: [(action, success)]}, "failures": {video_id: reason},
-        "seconds": {video_id: seconds}, "wall_seconds": seconds}`` (``seconds``: each video's
-        reconstruction, both stages, where this run made it); with ``robot`` also
-        ``"robot": {video_id: RobotOutcome or None}`` and ``"agreement"``
-        (:func:`~warpskill.bench.end_to_end.agreement`); ``"outcomes"`` (the
-        :class:`~warpskill.bench.outcomes.CaseOutcome` of each video); and ``"size_ratios"``
-        (:func:`noun_size_ratios`).
+        The run's :class:`SomethingElseRun`.
     """
     table = read_something_else(annotations, phases, actions)
     unknown = sorted(set(videos or ()) - set(table))
     if unknown:
         raise ValueError(f"videos not in the annotation files: {', '.join(unknown)}")
-    out = Path(out)
-    wall = time.perf_counter()
+    out, vids, wall = Path(out), videos or list(table), time.perf_counter()
     options = options or OptimizeOptions()
     step = _RobotStep(engines, options.device or "cpu", video) if robot else None
-    if workers is not None or address:
-        if ray_available():
-            result = _bench_on_ray(table, videos or list(table), out, options, pictures, workers, address, step)
-            return _with_outcomes(result, out, table, videos or list(table), baseline, save_baseline,
-                                  options.object_noun)
-        print(f"--workers needs Ray, which is not installed ({INSTALL_HINT}): running serially")
-    results, failures, seconds = [], {}, {}
-    for vid in videos or list(table):
-        video, folder, start = table[vid], out / vid, time.perf_counter()
-        try:
-            recon, status, notes = _reconstruct(video, folder, options, pictures, seconds)
-            evaluation = evaluate(recon, video.action)
-        except Exception as exc:  # one bad video must not stop the benchmark: report it, go on
-            failures[vid] = record_failure(folder, exc)
-            _count_failure(results, step, vid, video.action, failures[vid])
-            continue
-        took = f"{time.perf_counter() - start:.1f} s" + (f" ({seconds[vid]:.1f} s reconstructing)" if vid in seconds else "")
-        _count(results, step, vid, evaluation, f"{status}, {took}, {len(notes)} note(s)", recon, folder)
-    result = _report(results, failures, seconds, time.perf_counter() - wall, "serial, in this process", step)
-    return _with_outcomes(result, out, table, videos or list(table), baseline, save_baseline, options.object_noun)
+    seconds: dict[str, float] = {}
+    on_ray = (workers is not None or address) and ray_available()
+    if (workers is not None or address) and not on_ray:
+        logger.warning("--workers needs Ray, which is not installed (%s): running serially", INSTALL_HINT)
+    if on_ray:
+        made, where = _made_on_ray(table, vids, out, options, pictures, workers, address, seconds)
+    else:
+        made = {vid: functools.partial(reconstruct_here, table[vid], out / vid, options, pictures, seconds) for vid in vids}
+        where = "serial, in this process"
+    outcomes = [run_case(vid, table[vid].action, out / vid, made[vid], step) for vid in vids]
+    failures = {o.case: o.note for o in outcomes if o.failed_checks == ("error",)}
+    wall = time.perf_counter() - wall
+    rows = _report([o for o in outcomes if o.action], failures, seconds, wall, where, step)
+    ratios = noun_size_ratios(out, {vid: options.object_noun or video_noun(table[vid]) for vid in vids})
+    by_hand = hand_size_ratios(out, {vid: table[vid] for vid in vids})
+    outcomes = [_with_size_ratios(o, {"noun_ratio": ratios.get(o.case), "hand_ratio": by_hand.get(o.case)})
+                for o in outcomes if o.action]
+    record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
+    robots = None if step is None else {vid: outcome for vid, _, _, outcome in step.cases}
+    return SomethingElseRun(rows, outcomes, failures, seconds, wall, ratios, by_hand, robots,
+                            None if robots is None else agreement(list(robots.values())))
+
+
+@dataclasses.dataclass(frozen=True)
+class SomethingElseRun:
+    """What :func:`bench_something_else` found.
+
+    Attributes:
+        rows: the success table's rows, row -> [(action, success)] per video with an action.
+        outcomes: the :class:`~warpskill.bench.outcomes.CaseOutcome` of each video with an action.
+        failures: video id -> why it has no evaluation.
+        seconds: video id -> its reconstruction's time [s] (both stages), where this run made it.
+        wall_seconds: the whole run [s].
+        size_ratios, hand_ratios: video id -> the object's size against its noun's typical one,
+            and against the hand's measure of it (:func:`noun_size_ratios`, :func:`hand_size_ratios`).
+        robot: with ``robot``, video id -> the robot step's outcome (None: no reconstruction).
+        agreement: with ``robot``, how the engines agree (:func:`~warpskill.bench.end_to_end.agreement`).
+    """
+
+    rows: dict[str, list[tuple[str, bool]]]
+    outcomes: list[CaseOutcome]
+    failures: dict[str, str]
+    seconds: dict[str, float]
+    wall_seconds: float
+    size_ratios: dict[str, float | None]
+    hand_ratios: dict[str, float | None]
+    robot: dict[str, RobotOutcome | None] | None = None
+    agreement: dict | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Reconstructed:
+    """A video's reconstruction as :func:`run_case` receives it from either path.
+
+    Attributes:
+        recon: the reconstruction.
+        detail: how it was made (``reconstructed``, ``done before``), how long it took and the
+            demonstration's notes, as the video's line says it.
+    """
+
+    recon: Reconstruction
+    detail: str
+
+
+def run_case(vid: str, action: str | None, folder: Path, reconstruct: Callable[[], Reconstructed],
+             step: _RobotStep | None = None, truth: Callable[[], dict] | None = None) -> CaseOutcome:
+    """One annotated video of a benchmark (``bench something-else``, ``bench second-opinion``): its
+    reconstruction (``reconstruct()``, made in this process or taken from a Ray task), evaluated for
+    ``action`` (and, with ``truth()``, its ground truth: the errors, :func:`camera_frame_errors`),
+    its line logged, then (with ``step``) the robot step. A video that fails is its reason, its
+    traceback kept in ``folder``; one without an action has an empty one (it has no column in the
+    table)."""
+    try:
+        made = reconstruct()
+        evaluation = evaluate(made.recon, action)
+        errors = camera_frame_errors(made.recon, truth()) if truth is not None else None
+    except Exception as exc:  # one bad video must not stop the benchmark: report it, go on
+        outcome = failed_case(vid, action or "", record_failure(folder, exc))
+        logger.info("%6s %-20s ERROR %s", vid, action or "?", outcome.note)
+        return outcome if step is None or not action else dataclasses.replace(outcome, robot=step.skip(vid, action))
+    outcome = judged(vid, evaluation, errors)
+    scale = f", scale {outcome.errors['scale']:.2f}" if "scale" in outcome.errors else ""
+    logger.info("%6s %-20s %s  %s%s", vid, action, outcome.verdict(), made.detail, scale)
+    if step is None:
+        return outcome
+    return dataclasses.replace(outcome, robot=step.run(vid, action, made.recon, outcome.success, folder))
 
 
 def _demonstration(video, folder: Path):
@@ -151,75 +226,72 @@ def _demonstration(video, folder: Path):
     return demo, notes
 
 
-def _reconstruct(video, folder: Path, options: OptimizeOptions, pictures: bool,
-                 seconds: dict[str, float]) -> tuple[Reconstruction, str, list[str]]:
-    """A video's reconstruction in ``folder`` (the finished one there, or optimised, saved and
-    pictured), its status and the demonstration's notes; the optimisation's time [s] goes to
-    ``seconds[video id]``."""
+def reconstruct_here(video, folder: Path, options: OptimizeOptions, pictures: bool,
+                     seconds: dict[str, float]) -> Reconstructed:
+    """A video's reconstruction in this process: the finished one in ``folder``, or optimised,
+    saved and pictured (the optimisation's time [s] goes to ``seconds[video id]``)."""
+    start = time.perf_counter()
     demo, notes = _demonstration(video, folder)
     keeper = ResultsFolder(folder)
     with keeper.locked():
         recon = keeper.finished_reconstruction(options.to_json())
-        if recon is not None:
-            return recon, "done before", notes
-        optimizing = time.perf_counter()
-        recon = optimize(demo, options, progress=False, checkpoint=keeper.checkpoint)
-        seconds[video.video_id] = time.perf_counter() - optimizing
-        keeper.save(recon, keeper.reconstruction)
-        if pictures:
-            save_pictures(recon, demo, folder)
-    return recon, "reconstructed", notes
+        status = "done before"
+        if recon is None:
+            optimizing = time.perf_counter()
+            recon = optimize(demo, options, progress=False, checkpoint=keeper.checkpoint)
+            seconds[video.video_id] = time.perf_counter() - optimizing
+            keeper.save(recon, keeper.reconstruction)
+            if pictures:
+                save_pictures(recon, demo, folder)
+            status = "reconstructed"
+    took = f"{time.perf_counter() - start:.1f} s"
+    if video.video_id in seconds:
+        took += f" ({seconds[video.video_id]:.1f} s reconstructing)"
+    return Reconstructed(recon, f"{status}, {took}, {len(notes)} note(s)")
 
 
-def _count(results: list, step, vid: str, evaluation, detail: str, recon: Reconstruction, folder: Path) -> None:
-    """Count a video's evaluation in ``results``, print its line (the verdict, then ``detail``) and
-    run the robot step on it."""
-    results.append((evaluation.action, evaluation.success))
-    print(f"{vid:>6} {evaluation.action:<20} {judged(vid, evaluation).verdict()}  {detail}", flush=True)
-    if step is not None:
-        step.run(vid, evaluation.action, recon, evaluation.success, folder)
+def _made_on_ray(table, vids, out: Path, options, pictures, workers, address,
+                 seconds: dict[str, float]) -> tuple[dict[str, Callable[[], Reconstructed]], str]:
+    """The videos' demonstrations built here and reconstructed over Ray: per video, what hands
+    :func:`run_case` its reconstruction (or raises why there is none); and where it ran, in words.
+    The optimisations' times [s] go to ``seconds``."""
+    demos, notes, errors = {}, {}, {}
+    for vid in vids:
+        try:
+            demos[vid], notes[vid] = _demonstration(table[vid], out / vid)
+        except Exception as exc:  # raised again by run_case, which records it
+            errors[vid] = exc
+    summary = optimize_folder(demos, out, options, workers=workers, address=address, progress=True,
+                              postprocess=save_pictures if pictures else None)
+
+    def taken(vid: str) -> Reconstructed:
+        if vid in errors:
+            raise errors[vid]
+        task = summary.outcomes[vid]
+        if not task.ok:
+            raise CaseFailed(task.reason)
+        if task.status == "done":
+            seconds[vid] = task.optimize_seconds
+        return Reconstructed(Reconstruction.load(task.reconstruction),
+                             f"{'reconstructed' if task.status == 'done' else task.status}, {task.seconds:.1f} s in "
+                             f"its task ({task.cpu_seconds:.1f} s CPU, {task.optimize_seconds:.1f} s reconstructing), "
+                             f"{len(notes[vid])} note(s)")
+
+    cpu = sum(o.cpu_seconds for o in summary.outcomes.values())
+    where = f"{summary.workers} Ray worker(s), Ray start-up {summary.startup_seconds:.1f} s, {cpu:.1f} s CPU in the tasks"
+    return {vid: functools.partial(taken, vid) for vid in vids}, where
 
 
-def _count_failure(results: list, step, vid: str, action: str | None, reason: str) -> None:
-    """Count a video that has no evaluation as a failure (one without an action has no column in
-    the table) and print why."""
-    if action:
-        results.append((action, False))
-        if step is not None:
-            step.skip(vid, action)
-    print(f"{vid:>6} {action or '?':<20} ERROR {reason}", flush=True)
-
-
-def _with_outcomes(result: dict, out: Path, table, vids, baseline, save_baseline, object_noun) -> dict:
-    """The run's result with its per-video outcomes and size ratios added, written to ``out``,
-    compared with ``baseline``."""
-    cases = {vid: table[vid].action for vid in vids if table[vid].action}
-    ratios = noun_size_ratios(out, {vid: object_noun or video_noun(table[vid]) for vid in vids})
-    by_hand = hand_size_ratios(out, {vid: table[vid] for vid in vids})
-    outcomes = [_with_size_and_robot(o, {"noun_ratio": ratios.get(o.case), "hand_ratio": by_hand.get(o.case)},
-                                     result.get("robot"))
-                for o in folder_outcomes(out, cases, result["failures"])]
-    record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
-    return {**result, "outcomes": outcomes, "size_ratios": ratios, "hand_ratios": by_hand}
-
-
-def _with_size_and_robot(outcome: CaseOutcome, size_ratios: dict[str, float | None],
-                         robots: dict | None) -> CaseOutcome:
-    """A video's outcome with its size ratios (``noun_ratio``, ``hand_ratio``; None: not measured) and
-    (where the robot step ran) the robot's record."""
+def _with_size_ratios(outcome: CaseOutcome, size_ratios: dict[str, float | None]) -> CaseOutcome:
+    """A video's outcome with its size ratios (``noun_ratio``, ``hand_ratio``; None: not measured)."""
     errors = {**outcome.errors, **{key: ratio for key, ratio in size_ratios.items() if ratio is not None}}
-    if robots is None or outcome.case not in robots:
-        return dataclasses.replace(outcome, errors=errors)
-    robot = robots[outcome.case]
-    record = robot.record() if robot is not None else {"planned": False, "replays": {}, "robust": None,
-                                                        "misses": ["no reconstruction"], "substitute": ""}
-    return dataclasses.replace(outcome, errors=errors, robot=record)
+    return dataclasses.replace(outcome, errors=errors)
 
 
 def noun_size_ratios(out: Path, nouns: dict[str, str | None]) -> dict[str, float | None]:
     """Each reconstructed object's size against its noun's typical size
     (:func:`~warpskill.nouns.typical.size_ratio`; None: no typical size), per video id with a
-    reconstruction in ``out``; prints their median. ``nouns``: video id -> the object's noun."""
+    reconstruction in ``out``; shows their median. ``nouns``: video id -> the object's noun."""
     ratios = {}
     for vid, noun in nouns.items():
         path = out / vid / ResultsFolder.RECONSTRUCTION
@@ -228,19 +300,19 @@ def noun_size_ratios(out: Path, nouns: dict[str, str | None]) -> dict[str, float
     known = [ratio for ratio in ratios.values() if ratio is not None]
     unknown = [f"{vid} ({nouns[vid] or 'no noun'})" for vid, ratio in ratios.items() if ratio is None]
     if known:
-        print(f"object size / its noun's typical size (largest edge): {_spread(known)}"
-              + (f"; no typical size: {', '.join(unknown)}" if unknown else ""))
+        show(f"object size / its noun's typical size (largest edge): {_spread(known)}"
+             + (f"; no typical size: {', '.join(unknown)}" if unknown else ""))
         far = [f"{vid} {nouns[vid]} {ratio:.2f}x" for vid, ratio in ratios.items()
                if ratio is not None and not 1 / NEAR_TYPICAL <= ratio <= NEAR_TYPICAL]
         if far:
-            print(f"  beyond {NEAR_TYPICAL:g}x: {', '.join(far)}")
+            show(f"  beyond {NEAR_TYPICAL:g}x: {', '.join(far)}")
     return ratios
 
 
 def hand_size_ratios(out: Path, videos: dict[str, SomethingElseVideo]) -> dict[str, float | None]:
     """Each reconstructed object's size against the hand's measure of it
     (:func:`~warpskill.bench.rulers.hand_ruler_ratio`; None: no frame to measure), per video id
-    with a reconstruction in ``out``; prints their median."""
+    with a reconstruction in ``out``; shows their median."""
     ratios = {}
     for vid, video in videos.items():
         path = out / vid / ResultsFolder.RECONSTRUCTION
@@ -249,8 +321,8 @@ def hand_size_ratios(out: Path, videos: dict[str, SomethingElseVideo]) -> dict[s
             ratios[vid] = hand_ruler_ratio(Reconstruction.load(path).object_size, demo)
     known = [ratio for ratio in ratios.values() if ratio is not None]
     if known:
-        print(f"object size / the hand's measure of it (object box over hand box, a hand {HAND_LENGTH * 100:.0f} cm "
-              f"long): {_spread(known)}")
+        show(f"object size / the hand's measure of it (object box over hand box, a hand {HAND_LENGTH * 100:.0f} cm "
+             f"long): {_spread(known)}")
     return ratios
 
 
@@ -261,71 +333,36 @@ def _spread(ratios: list[float]) -> str:
             f"videos, {within} within {NEAR_TYPICAL:g}x)")
 
 
-def _bench_on_ray(table, vids, out: Path, options, pictures, workers, address, step) -> dict:
-    """The videos' demonstrations built here, reconstructed over Ray, then evaluated here."""
-    wall = time.perf_counter()
-    results, failures, seconds, demos, notes = [], {}, {}, {}, {}
-    for vid in vids:
-        try:
-            demos[vid], notes[vid] = _demonstration(table[vid], out / vid)
-        except Exception as exc:
-            failures[vid] = record_failure(out / vid, exc)
-    summary = optimize_folder(demos, out, options, workers=workers, address=address, progress=True,
-                              postprocess=save_pictures if pictures else None)
-    for vid in vids:
-        video = table[vid]
-        outcome = summary.outcomes.get(vid)
-        try:
-            if vid in failures:
-                raise RuntimeError(failures[vid])
-            if not outcome.ok:
-                raise RuntimeError(outcome.reason)
-            recon = Reconstruction.load(outcome.reconstruction)
-            evaluation = evaluate(recon, video.action)
-        except Exception as exc:
-            if vid not in failures:
-                failures[vid] = str(exc) if isinstance(exc, RuntimeError) else f"{type(exc).__name__}: {exc}"
-            _count_failure(results, step, vid, video.action, failures[vid])
-            continue
-        if outcome.status == "done":
-            seconds[vid] = outcome.optimize_seconds
-        status = "reconstructed" if outcome.status == "done" else outcome.status
-        _count(results, step, vid, evaluation, f"{status}, {outcome.seconds:.1f} s in its task "
-               f"({outcome.cpu_seconds:.1f} s CPU, {outcome.optimize_seconds:.1f} s reconstructing), "
-               f"{len(notes[vid])} note(s)", recon, out / vid)
-    cpu = sum(o.cpu_seconds for o in summary.outcomes.values())
-    where = f"{summary.workers} Ray worker(s), Ray start-up {summary.startup_seconds:.1f} s, {cpu:.1f} s CPU in the tasks"
-    return _report(results, failures, seconds, time.perf_counter() - wall, where, step)
-
-
 class _RobotStep:
-    """The robot step per video (:func:`robot_step`), its printed line and the outcomes so far."""
+    """The robot step per video (:func:`robot_step`), its logged line and the outcomes so far."""
 
     def __init__(self, engines: Sequence[str], device: str, video: bool):
         prefer_headless_gl()
         self.engines, self.device, self.video = tuple(engines), device, video
         self.cases: list = []  # (video_id, action, reconstruction ok, outcome or None)
 
-    def run(self, vid: str, action: str, recon, reconstructed: bool, folder: Path) -> None:
+    def run(self, vid: str, action: str, recon, reconstructed: bool, folder: Path) -> RobotRecord:
+        """Plan and replay a video's reconstruction; its record for the outcome table."""
         try:
             outcome = robot_step(recon, folder, engines=self.engines, device=self.device, video=self.video)
             line = outcome.summary()
         except Exception as exc:  # a messy real scene must not stop the benchmark either
-            outcome = RobotOutcome(reason=f"{type(exc).__name__}: {one_line(exc)}")
-            (folder / "robot_error.txt").write_text(traceback.format_exc())
+            outcome = RobotOutcome(reason=record_failure(folder, exc, "robot_error.txt"))
             line = f"robot step failed ({outcome.reason})"
         self.cases.append((vid, action, reconstructed, outcome))
-        print(f"{'':>6} {'robot':<20} {line[:200]}", flush=True)
+        logger.info("%6s %-20s %s", "", "robot", line[:200])
+        return outcome.record()
 
-    def skip(self, vid: str, action: str) -> None:
+    def skip(self, vid: str, action: str) -> RobotRecord:
         """A video without a reconstruction: every robot column fails."""
         self.cases.append((vid, action, False, None))
+        return RobotRecord(False, misses=("no reconstruction",))
 
-    def report(self) -> dict:
+    def report(self) -> None:
+        """Show the per-video table, the end-to-end count, the timings and how the engines agree."""
         outcomes = [outcome for *_, outcome in self.cases]
-        print()
-        print("| video | action | reconstruction | plan | " + " | ".join(f"{e} replay" for e in self.engines) + " |")
-        print("| --- | --- | --- | --- | " + " | ".join("---" for _ in self.engines) + " |")
+        lines = ["", "| video | action | reconstruction | plan | " + " | ".join(f"{e} replay" for e in self.engines) + " |",
+                 "| --- | --- | --- | --- | " + " | ".join("---" for _ in self.engines) + " |"]
         for vid, action, reconstructed, outcome in self.cases:
             if outcome is None:
                 plan = "no reconstruction"
@@ -334,40 +371,38 @@ class _RobotStep:
             else:
                 plan = f"none: {outcome.reason}".replace("|", "/")
             cells = [_verdict(outcome, engine) for engine in self.engines]
-            print(f"| {vid} | {action} | {'ok' if reconstructed else 'fail'} | {plan} | " + " | ".join(cells) + " |")
+            lines.append(f"| {vid} | {action} | {'ok' if reconstructed else 'fail'} | {plan} | " + " | ".join(cells) + " |")
         end = [reconstructed and outcome is not None and outcome.replayed for _, _, reconstructed, outcome in self.cases]
         if end:
-            print(f"\nend to end (reconstruction and every replay meet the criteria): {sum(end)}/{len(end)} "
-                  f"({100.0 * sum(end) / len(end):.1f} %)")
-        for line in timing_lines(outcomes):
-            print(line)
-        line = agreement_line(outcomes)
-        if line:
-            print(line)
-        return {"robot": {vid: outcome for vid, _, _, outcome in self.cases}, "agreement": agreement(outcomes)}
+            lines.append(f"\nend to end (reconstruction and every replay meet the criteria): {sum(end)}/{len(end)} "
+                         f"({100.0 * sum(end) / len(end):.1f} %)")
+        lines += timing_lines(outcomes)
+        show(*lines, *filter(None, [agreement_line(outcomes)]))
 
 
 def _verdict(outcome: RobotOutcome | None, engine: str) -> str:
     """A per-video table cell: ``ok``, ``fail (checks)`` or ``-`` (not replayed)."""
     if outcome is None or engine not in outcome.replays:
         return "-"
-    return "ok" if outcome.success(engine) else f"fail ({', '.join(outcome.failed_checks(engine))})"
+    return verdict(outcome.success(engine), outcome.failed_checks(engine)).strip()
 
 
-def _report(results, failures, seconds, wall: float, where: str, step: _RobotStep | None = None) -> dict:
-    rows = {ROW: results}
+def _report(outcomes: list[CaseOutcome], failures: dict[str, str], seconds: dict[str, float], wall: float,
+            where: str, step: _RobotStep | None = None) -> dict[str, list[tuple[str, bool]]]:
+    """Show the success table (with ``step``: the robot's rows, then its tables), the failures and
+    the times; returns the table's rows."""
+    rows = {ROW: [(o.action, o.success) for o in outcomes]}
     if step is not None:
         rows = robot_rows([(action, ok, outcome) for _, action, ok, outcome in step.cases], step.engines,
                           reconstruction_row=ROW)
-    print()
-    print(success_table(rows))
+    show("", success_table(rows))
     if failures:
-        print(f"\n{len(failures)} video(s) failed (counted as failures):")
-        for vid, reason in failures.items():
-            print(f"  {vid}: {reason}")
-    extra = step.report() if step is not None else {}
-    print(f"\nwall time: {wall:.1f} s ({where}; {sum(seconds.values()):.1f} s of reconstruction)")
+        show(f"\n{len(failures)} video(s) failed (counted as failures):",
+             *(f"  {vid}: {reason}" for vid, reason in failures.items()))
+    if step is not None:
+        step.report()
+    show(f"\nwall time: {wall:.1f} s ({where}; {sum(seconds.values()):.1f} s of reconstruction)")
     if seconds:
-        print(f"reconstruction (both stages) per video: median {statistics.median(seconds.values()):.1f} s "
-              f"({min(seconds.values()):.1f}-{max(seconds.values()):.1f} s)")
-    return {"rows": rows, "failures": failures, "seconds": seconds, "wall_seconds": wall, **extra}
+        show(f"reconstruction (both stages) per video: median {statistics.median(seconds.values()):.1f} s "
+             f"({min(seconds.values()):.1f}-{max(seconds.values()):.1f} s)")
+    return rows

@@ -33,6 +33,7 @@ from typing import Callable, Sequence
 
 import torch
 
+from warpskill.bench.report import show
 from warpskill.bench.timing import timed
 from warpskill.contract.actions import ACTIONS
 from warpskill.contract.demonstration import Demonstration
@@ -211,12 +212,12 @@ def bench_speed(
 def _print_table(rows: list[dict], problem: Problem, repeats: int) -> None:
     demo, config = problem.demo, problem.config
     h, w = demo.intrinsics.scaled(config.image_scale).image_size
-    print(
+    show(
         f"one iteration = objective forward + backward; {demo.num_frames} frames of {demo.image_size[0]} x "
         f"{demo.image_size[1]} masks, rendered at {h} x {w}; median of {repeats}; torch threads "
         f"{torch.get_num_threads()}"
     )
-    print(
+    show(
         f"full optimisation = {len(ObjectDepth)} x {config.init_iterations} stage (a) + "
         f"{config.iterations} stage (b) iterations (an upper bound); 'measured' runs warpskill.optimize"
     )
@@ -225,12 +226,12 @@ def _print_table(rows: list[dict], problem: Problem, repeats: int) -> None:
         f"{'engine':<10} {'device':<7} {'(a) iter [ms]':>13} {'(b) iter [ms]':>13} {'full est. [s]':>13} "
         f"{'measured [s]':>12} {'x warp (a)':>10} {'x warp (b)':>10} {'x warp full':>11}"
     )
-    print(header)
+    show(header)
     for r in rows:
         base = warp.get(r["device"])
         ratio = lambda key: f"{r[key] / base[key]:.1f}" if base and r[key] else "-"  # noqa: E731
         measured = f"{r['full_measured_s']:.1f}" if r["full_measured_s"] is not None else "-"
-        print(
+        show(
             f"{r['engine']:<10} {r['device']:<7} {1e3 * r['stage_a_s']:>13.1f} {1e3 * r['stage_b_s']:>13.1f} "
             f"{r['full_estimate_s']:>13.1f} {measured:>12} {ratio('stage_a_s'):>10} {ratio('stage_b_s'):>10} "
             f"{ratio('full_measured_s' if r['full_measured_s'] else 'full_estimate_s'):>11}"
@@ -278,13 +279,13 @@ def bench_scaling(
                 row[name] = median_seconds(
                     iteration(lambda: problem.stage_b(engine, scenes), *scenes), repeats, device)
             rows.append(row)
-    print(f"stage (b) iteration [ms] (median of {repeats})")
-    print(f"{'case':<12} {'device':<7} {'frames':>6} {'image':>8} {'B':>3} " + " ".join(f"{n:>10}" for n in engines)
+    show(f"stage (b) iteration [ms] (median of {repeats})")
+    show(f"{'case':<12} {'device':<7} {'frames':>6} {'image':>8} {'B':>3} " + " ".join(f"{n:>10}" for n in engines)
           + (f" {'ratio':>7}" if len(engines) > 1 else ""))
     for r in rows:
         times = " ".join(f"{1e3 * r[n]:>10.1f}" for n in engines)
         ratio = f" {r[engines[-1]] / r[engines[0]]:>7.1f}" if len(engines) > 1 else ""
-        print(f"{r['case']:<12} {r['device']:<7} {r['frames']:>6} {r['image']:>8} {r['batch']:>3} {times}{ratio}")
+        show(f"{r['case']:<12} {r['device']:<7} {r['frames']:>6} {r['image']:>8} {r['batch']:>3} {times}{ratio}")
     return rows
 
 
@@ -306,10 +307,10 @@ def bench_many(*, batches: Sequence[int] = (1, 8), devices: Sequence[str] = ("cp
             succeeded = sum(evaluate(r, d.action).success for r, d in zip(reconstructions, demos))
             rows.append(dict(device=str(device), batch=batch, seconds=seconds, rate=batch / seconds,
                              succeeded=succeeded))
-    print("warpskill.optimize_many, default settings, both stages")
-    print(f"{'device':<7} {'B':>4} {'total [s]':>10} {'demos/s':>8} {'succeeded':>10}")
+    show("warpskill.optimize_many, default settings, both stages")
+    show(f"{'device':<7} {'B':>4} {'total [s]':>10} {'demos/s':>8} {'succeeded':>10}")
     for r in rows:
-        print(f"{r['device']:<7} {r['batch']:>4} {r['seconds']:>10.1f} {r['rate']:>8.3f} {r['succeeded']:>6}/{r['batch']}")
+        show(f"{r['device']:<7} {r['batch']:>4} {r['seconds']:>10.1f} {r['rate']:>8.3f} {r['succeeded']:>6}/{r['batch']}")
     return rows
 
 
@@ -404,17 +405,17 @@ def stage_figures(records: Sequence[dict], clock: str = "cpu_seconds") -> dict[s
 
 def _print_set_table(name: str, results: dict) -> None:
     now, before = stage_figures(results["this"]), results.get("previous") and stage_figures(results["previous"])
-    print(f"set {name}: {len(results['this'])} cases, one after another, one thread each"
+    show(f"set {name}: {len(results['this'])} cases, one after another, one thread each"
           + ("; previous release beside" if before else "") + "; CPU time of the process")
-    print(f"{'stage':<16} {'ms/iteration':>14} {'iterations':>14} {'launches':>16}  (this / previous; median per case)")
+    show(f"{'stage':<16} {'ms/iteration':>14} {'iterations':>14} {'launches':>16}  (this / previous; median per case)")
     for stage in (s for s in now if s != "video"):
         old = (before or {}).get(stage)
         pair = lambda key, fmt: f"{now[stage][key]:{fmt}}" + (f" / {old[key]:{fmt}}" if old else "")  # noqa: E731
-        print(f"{stage:<16} {pair('ms_per_iteration', '.1f'):>14} {pair('iterations', '.0f'):>14} "
+        show(f"{stage:<16} {pair('ms_per_iteration', '.1f'):>14} {pair('iterations', '.0f'):>14} "
               f"{pair('launches', '.0f'):>16}")
     for label, records in results.items():
         for clock in ("cpu_seconds", "seconds"):
             video = stage_figures(records, clock)["video"]
             kind = "CPU" if clock == "cpu_seconds" else "wall"
-            print(f"per case ({label}, {kind}): median {video['median_s']:.1f} s "
+            show(f"per case ({label}, {kind}): median {video['median_s']:.1f} s "
                   f"({video['min_s']:.1f}-{video['max_s']:.1f} s)")

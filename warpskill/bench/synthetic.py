@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import logging
 import statistics
 import tempfile
 import time
@@ -12,7 +14,8 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from warpskill.bench.outcomes import camera_frame_errors, judged, record_outcomes
+from warpskill.bench.outcomes import CaseOutcome, camera_frame_errors, judged, verdict
+from warpskill.bench.report import record_outcomes, show
 from warpskill.contract.actions import ACTIONS
 from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.evaluation import evaluate, success_table
@@ -22,6 +25,8 @@ from warpskill.optimizer.known import check_known, measured
 from warpskill.optimizer.options import OptimizeOptions
 from warpskill.optimizer.pipeline import optimize_many
 from warpskill.synthetic import check_scenarios, make_demonstration, real_scenarios
+
+logger = logging.getLogger(__name__)
 
 NOUN_SPREAD = 0.3
 """Log-normal spread of real objects' sizes around their noun's typical one (a mug, a
@@ -71,11 +76,11 @@ def bench_synthetic(
     baseline: Path | None = None,
     save_baseline: Path | None = None,
     nouns: bool = False,
-) -> dict:
-    """Reconstruct synthetic demonstrations of each action and print the paper's table.
+) -> SyntheticRun:
+    """Reconstruct synthetic demonstrations of each action, log each, show the paper's table.
 
     Rows: initialisation only, and the full method; columns: the actions (k/n), total, %.
-    Also prints the ground-truth errors (:func:`error_table`) and the time per
+    Also shows the ground-truth errors (:func:`error_table`) and the time per
     demonstration.
 
     Args:
@@ -90,10 +95,13 @@ def bench_synthetic(
             ``"narrow"`` makes put actions' static boxes narrower than the object, ``"turned"``
             turns them by up to 30 deg (see
             :func:`warpskill.synthetic.make_demonstration`).
-        baseline, save_baseline: see :func:`warpskill.bench.outcomes.record_outcomes`; the
+        baseline, save_baseline: see :func:`warpskill.bench.report.record_outcomes`; the
             full method's per-case outcomes are also written to ``out`` (``outcomes.json``).
         nouns: give each demonstration an ``object_noun`` whose typical size is its object's
             times a log-normal spread (:func:`spread_noun`), named in the case's note.
+
+    Returns:
+        The run's :class:`SyntheticRun`.
     """
     check_known({name: 1.0 for name in known})
     options = options or OptimizeOptions()
@@ -126,17 +134,31 @@ def bench_synthetic(
                 outcomes.append(replace(judged(f"{action}_{seed}", evaluation, errors["full method"][-1]), note=note))
                 if out is not None:
                     folder.save(demo, folder.demonstration)
-                print(f"{action:<22} seed {seed}: init {'ok  ' if rows['initialisation only'][-1][1] else 'fail'}"
-                      f" full {'ok  ' if rows['full method'][-1][1] else 'fail'}  {seconds[-1]:6.1f} s", flush=True)
+                logger.info("%-22s seed %d: init %s full %s  %6.1f s", action, seed,
+                            verdict(rows["initialisation only"][-1][1]), verdict(rows["full method"][-1][1]), seconds[-1])
 
-    print()
-    print(success_table(rows))
-    print()
-    print(error_table(errors))
-    print(f"time per demonstration (both stages, {options.device or 'cpu'}): median {statistics.median(seconds):.1f} s, "
-          f"max {max(seconds):.1f} s")
+    show("", success_table(rows), "", error_table(errors),
+         f"time per demonstration (both stages, {options.device or 'cpu'}): median {statistics.median(seconds):.1f} s, "
+         f"max {max(seconds):.1f} s")
     record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
-    return {"rows": rows, "errors": errors, "seconds": seconds, "outcomes": outcomes}
+    return SyntheticRun(rows, errors, seconds, outcomes)
+
+
+@dataclasses.dataclass(frozen=True)
+class SyntheticRun:
+    """What :func:`bench_synthetic` found.
+
+    Attributes:
+        rows: the success table's rows (``initialisation only``, ``full method``) -> [(action, success)].
+        errors: the same rows -> each case's :func:`camera_frame_errors`, in case order.
+        seconds: each case's time [s], both stages.
+        outcomes: the full method's :class:`~warpskill.bench.outcomes.CaseOutcome` of each case.
+    """
+
+    rows: dict[str, list[tuple[str, bool]]]
+    errors: dict[str, list[dict[str, float]]]
+    seconds: list[float]
+    outcomes: list[CaseOutcome]
 
 
 def _case(action: str, seed: int, *, noise: str, input: str, scenarios: str, nouns: bool) -> tuple[Demonstration, str]:

@@ -30,6 +30,8 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import logging
 import os
 import sys
 
@@ -52,13 +54,40 @@ def main(argv: list[str] | None = None) -> int:
     configure_warp_log(args.verbose)
     set_torch_threads(args.torch_threads)
     try:
-        return args.run(args) or 0
+        with console_log():
+            return args.run(args) or 0
     except Refused as error:  # understood, cannot be done: one line, status 2
         print(f"warpskill: error: {error}", file=sys.stderr)
         return 2
     except (ValueError, FileNotFoundError, ResultsFolderError) as error:  # bad input, a full disk: one clear line
         print(f"warpskill: error: {error}", file=sys.stderr)
         return 1
+
+
+class _Console(logging.Handler):
+    """Each record's message as one line on the standard output of the moment (pytest swaps it)."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            sys.stdout.write(self.format(record) + "\n")
+            sys.stdout.flush()
+        except Exception:  # logging's own way: report, never raise
+            self.handleError(record)
+
+
+@contextlib.contextmanager
+def console_log():
+    """While a command runs, the library's progress and warnings (the ``warpskill`` loggers, INFO and
+    up) are shown on the standard output, one plain line each, as the command's own lines."""
+    logger, handler = logging.getLogger("warpskill"), _Console()
+    level = logger.level
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
 
 
 def set_torch_threads(requested: int | None) -> None:

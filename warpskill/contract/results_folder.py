@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import json
+import logging
 import os
 import time
 from pathlib import Path
@@ -33,6 +34,8 @@ from warpskill.contract.npz import write_atomic
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.replay import Replay
 from warpskill.file_lock import hold_lock
+
+logger = logging.getLogger(__name__)
 
 __all__ = ["ResultsFolder", "ResultsFolderError"]
 
@@ -103,7 +106,7 @@ class ResultsFolder:
             return load(path)
         except (ValueError, OSError) as error:
             reason = str(error).removeprefix(f"{path}: ")
-            print(f"{path} is corrupt ({reason}): redoing it", flush=True)
+            logger.warning("%s is corrupt (%s): redoing it", path, reason)
             return None
 
     def finished_reconstruction(self, options: str | None = None) -> Reconstruction | None:
@@ -118,7 +121,7 @@ class ResultsFolder:
         recon = self.load_finished(self.reconstruction, Reconstruction.load)
         if recon is None or options is None or _same_options(str(recon.options), options):
             return recon
-        print(f"{self.reconstruction}: made with other options; redoing the step", flush=True)
+        logger.warning("%s: made with other options; redoing the step", self.reconstruction)
         return None
 
     def finished_demonstration(self) -> Demonstration | None:

@@ -14,6 +14,7 @@ learning rate (:mod:`.loop`).
 from __future__ import annotations
 
 import hashlib
+import logging
 import os
 from dataclasses import replace
 from typing import Callable, Mapping, Sequence
@@ -45,6 +46,8 @@ from warpskill.optimizer.known import check_known
 from warpskill.optimizer.loop import minimise
 from warpskill.optimizer.losses import MaskTargets, masks_loss
 from warpskill.optimizer.options import OptimizeOptions
+
+logger = logging.getLogger(__name__)
 from warpskill.optimizer.scene import SceneTrajectories, perceptual_loss
 from warpskill.optimizer.stage_a import initial_objective
 from warpskill.optimizer.stage_b import PhysicalRollout, make_physical_scene, physical_objective
@@ -174,10 +177,9 @@ def _object_noun(demo: Demonstration, options: OptimizeOptions, known: dict[str,
     scale (the run goes on without the prior)."""
     noun = options.object_noun or demo.object_noun
     if noun and typical_size(noun) is None:
-        print(f"object noun {noun!r}: no typical size known, so no size prior", flush=True)
+        logger.warning("object noun %r: no typical size known, so no size prior", noun)
     elif noun and known:
-        print(f"object noun {noun!r}: the known {', '.join(sorted(known))} fixes the scale, so no size prior",
-              flush=True)
+        logger.warning("object noun %r: the known %s fixes the scale, so no size prior", noun, ", ".join(sorted(known)))
     return noun
 
 

@@ -15,6 +15,7 @@ first use, so importing this module works without it.
 
 from __future__ import annotations
 
+import logging
 import os
 import time
 import urllib.parse
@@ -28,6 +29,8 @@ from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.replay import Replay
 from warpskill.visual.rerun_entities import blueprint, log_scene
 from warpskill.visual.rerun_scene import SceneData, prepare_scene
+
+logger = logging.getLogger(__name__)
 
 __all__ = ["APPLICATION_ID", "INSTALL_HINT", "WEB_PORT", "import_rerun", "view"]
 
@@ -114,7 +117,7 @@ def _serve(rr, scene: SceneData, layout, recording_id: str) -> None:
     rec.flush()
     rr.serve_web_viewer(web_port=WEB_PORT, open_browser=False, connect_to=uri)
     url = f"http://localhost:{WEB_PORT}/?url={urllib.parse.quote(uri, safe=':/')}"
-    print(f"Rerun web viewer: {url}  (gRPC: {uri}; Ctrl-C to stop)", flush=True)
+    logger.info("Rerun web viewer: %s  (gRPC: %s; Ctrl-C to stop)", url, uri)
     try:
         while True:
             time.sleep(1.0)
