@@ -25,6 +25,7 @@ from typing import Any
 
 import warp as wp
 
+from . import OPTIMIZATION_LEVEL
 from .contact import contact_impulses_func, tip_distance
 from .geometry import exp_so3, orthonormalize
 
@@ -51,7 +52,7 @@ def _kernels(dtype):
     mat33 = wp.types.matrix((3, 3), dtype)
     add_contact_impulses = contact_impulses_func(dtype)
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options={"optimization_level": OPTIMIZATION_LEVEL})
     def _rollout(
         # Model:
         dt: dtype,
@@ -171,7 +172,7 @@ def _kernels(dtype):
             object_vel_out[b, n + 1] = s * v_carry + v_new
             object_ang_vel_out[b, n + 1] = s * w_h + w_new
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options={"optimization_level": OPTIMIZATION_LEVEL})
     def _gather_frames(
         # Model:
         steps_per_frame: int,

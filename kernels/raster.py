@@ -33,7 +33,9 @@ from typing import Any
 
 import warp as wp
 
-wp.set_module_options({"enable_backward": False})
+from . import OPTIMIZATION_LEVEL
+
+wp.set_module_options({"enable_backward": False, "optimization_level": OPTIMIZATION_LEVEL})
 
 TILE = 16
 """Tile edge [px]."""

@@ -26,13 +26,8 @@ def camera_rotation(elevation: torch.Tensor) -> torch.Tensor:
     """
     e = torch.as_tensor(elevation)
     s, c = torch.sin(e), torch.cos(e)
-    zero, one = torch.zeros_like(e), torch.ones_like(e)
-    rows = [
-        torch.stack([one, zero, zero], dim=-1),
-        torch.stack([zero, -s, c], dim=-1),
-        torch.stack([zero, -c, -s], dim=-1),
-    ]
-    return torch.stack(rows, dim=-2)
+    zero, one, minus_s = torch.zeros_like(e), torch.ones_like(e), -s
+    return torch.stack([one, zero, zero, zero, minus_s, c, zero, -c, minus_s], dim=-1).unflatten(-1, (3, 3))
 
 
 def world_to_camera(points: torch.Tensor, height: torch.Tensor, elevation: torch.Tensor) -> torch.Tensor:

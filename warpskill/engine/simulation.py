@@ -56,44 +56,57 @@ def substeps_per_frame(fps: float, config: PhysicsConfig = PhysicsConfig()) -> i
 
 
 class _Workspace:
-    """The rollout's arrays for one shape, allocated once and reused: the per-step states
-    ``steps`` (B, S + 1), the per-frame ones ``frames`` (B, N) and the ``scratch``
-    (:mod:`warpskill.kernels.integrator`), with gradient buffers where ``requires_grad``. A call
+    """The rollout's arrays for one shape, allocated once and reused: the inputs ``inputs`` (a
+    :class:`~warpskill.engine.records.SceneInputs` of Torch tensors, B scenes, S steps, K statics)
+    with their Warp views ``arrays`` (by field name), the per-step states ``steps`` (B, S + 1),
+    the per-frame ones ``frames`` (B, N) and the ``scratch`` (:mod:`warpskill.kernels.integrator`),
+    with gradient buffers where ``requires_grad``, and Torch views of the inputs' gradients
+    ``input_grads`` and of the frames' ``frame_grads`` (:class:`Rollout` field order). A call
     takes one from :data:`_POOL` and gives it back once its backward pass has run (at once
     without one); the tape's ``zero()`` leaves the gradients clear for the next."""
 
     def __init__(self, key: tuple):
-        num_scenes, num_steps, num_frames, scalar, device, requires_grad = self.key = key
+        num_scenes, num_steps, num_frames, num_statics, scalar, device, requires_grad = self.key = key
+        torch_device = wp.device_to_torch(device)
+        sizes = {"B": num_scenes, "S": num_steps, "K": num_statics}
+        value_types = {"vec3": wp.types.vector(3, scalar), "mat33": wp.types.matrix((3, 3), scalar), "scalar": scalar}
+        dtype = torch.float64 if scalar == wp.float64 else torch.float32
+        self.inputs = SceneInputs(**{
+            name: torch.zeros([sizes.get(n, n) for n in spec.shape], dtype=dtype, device=torch_device)
+            for name, spec in SceneInputs.specs().items()
+        })
+        self.arrays = {name: as_warp(tensor, value_types[SceneInputs.specs()[name].kind], requires_grad)
+                       for name, tensor in self.inputs.items()}
         self.steps = Trajectory.zeros(num_scenes, num_steps + 1, scalar, device, requires_grad)
         self.frames = Trajectory.zeros(num_scenes, num_frames, scalar, device, requires_grad)
         self.scratch = Scratch.zeros(num_scenes, num_steps, scalar, device, requires_grad)
+        if requires_grad:
+            self.input_grads = [wp.to_torch(array.grad, requires_grad=False) for array in self.arrays.values()]
+            self.frame_grads = [wp.to_torch(array.grad, requires_grad=False) for array in _frame_arrays(self.frames)]
 
 
 _POOL = WorkspacePool(_Workspace)
 
 
 def _launch(config: PhysicsConfig, steps_per_frame: int, dt: float, inputs: SceneInputs, requires_grad: bool):
-    """Run the rollout on Warp views of ``inputs`` in a workspace from the pool; returns the tape,
-    the input arrays (field order) and the :class:`_Workspace` (its ``frames`` the per-frame
-    :class:`Trajectory`). Launches are recorded on the tape if ``requires_grad``."""
+    """Run the rollout of ``inputs`` (copied into a workspace from the pool); returns the tape and
+    the :class:`_Workspace` (its ``frames`` the per-frame :class:`Trajectory`). Launches are
+    recorded on the tape if ``requires_grad``."""
     wp.init()
     device = inputs.hand_pos0.device
     scalar = wp.float64 if inputs.hand_pos0.dtype == torch.float64 else wp.float32
-    value_types = {"vec3": wp.types.vector(3, scalar), "mat33": wp.types.matrix((3, 3), scalar), "scalar": scalar}
-    arrays = {
-        name: as_warp(getattr(inputs, name), value_types[spec.kind], requires_grad)
-        for name, spec in SceneInputs.specs().items()
-    }
-    num_scenes, num_steps = arrays["hand_vel"].shape[0], arrays["hand_vel"].shape[1]
-    key = (num_scenes, num_steps, num_steps // steps_per_frame + 1, scalar, str(wp.device_from_torch(device)),
-           requires_grad)
+    num_scenes, num_steps = inputs.hand_vel.shape[:2]
+    key = (num_scenes, num_steps, num_steps // steps_per_frame + 1, inputs.static_pos.shape[1], scalar,
+           str(wp.device_from_torch(device)), requires_grad)
     work = _POOL.take(key)
+    for buffer, tensor in zip(work.inputs.tensors(), inputs.tensors()):
+        buffer.copy_(tensor.detach())
     tape = wp.Tape()
     with warp_scope(device), tape if requires_grad else contextlib.nullcontext():
         work.scratch.clear()
-        rollout(config, dt, steps=work.steps, scratch=work.scratch, **arrays)
+        rollout(config, dt, steps=work.steps, scratch=work.scratch, **work.arrays)
         gather_frames(steps_per_frame, work.steps, work.frames)
-    return tape, list(arrays.values()), work
+    return tape, work
 
 
 def _frame_arrays(frames: Trajectory) -> list[wp.array]:
@@ -114,25 +127,21 @@ class _Simulate(torch.autograd.Function):
     def forward(ctx, config: PhysicsConfig, steps_per_frame: int, dt: float, *tensors: torch.Tensor):
         ctx.set_materialize_grads(False)  # unused outputs seed nothing
         ctx.device = tensors[0].device
-        ctx.tape, ctx.inputs, ctx.work = _launch(config, steps_per_frame, dt, SceneInputs(*tensors),
-                                                 requires_grad=True)
+        ctx.tape, ctx.work = _launch(config, steps_per_frame, dt, SceneInputs(*tensors), requires_grad=True)
         return _to_torch(ctx.work.frames)
 
     @staticmethod
     def backward(ctx, *grad_outputs: torch.Tensor):
-        grads = {
-            array: as_warp(grad, array.dtype, requires_grad=False)
-            for array, grad in zip(_frame_arrays(ctx.work.frames), grad_outputs)
-            if grad is not None
-        }
+        work = ctx.work
+        for seed, grad in zip(work.frame_grads, grad_outputs):
+            if grad is not None:
+                seed.copy_(grad)  # into the frames' own .grad buffers (zeroed by the last tape.zero())
         with warp_scope(ctx.device):
-            ctx.tape.backward(grads=grads)  # copies the seeds into the frames' own .grad buffers
-            input_grads = [
-                wp.to_torch(array.grad, requires_grad=False).clone() if needed else None
-                for array, needed in zip(ctx.inputs, ctx.needs_input_grad[3:])
-            ]
+            ctx.tape.backward()
+            input_grads = [grad.clone() if needed else None
+                           for grad, needed in zip(work.input_grads, ctx.needs_input_grad[3:])]
             ctx.tape.zero()
-        _POOL.give_back(ctx.work.key, ctx.work)
+        _POOL.give_back(work.key, work)
         return (None, None, None, *input_grads)
 
 
@@ -168,6 +177,6 @@ def simulate(
     tensors = inputs.tensors()
     if torch.is_grad_enabled() and any(tensor.requires_grad for tensor in tensors):
         return Rollout(*_Simulate.apply(config, int(steps_per_frame), dt, *tensors))
-    _, _, work = _launch(config, int(steps_per_frame), dt, inputs, requires_grad=False)
+    _, work = _launch(config, int(steps_per_frame), dt, inputs, requires_grad=False)
     _POOL.give_back(work.key, work)
     return Rollout(*_to_torch(work.frames))

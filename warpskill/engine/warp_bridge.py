@@ -77,6 +77,8 @@ class WorkspacePool:
         return free.pop() if free else self.make(key)
 
     def give_back(self, key: tuple, workspace) -> None:
-        """Return ``workspace`` of shape ``key`` (kept while its shape is among the latest)."""
-        if key in self.free:
-            self.free[key].append(workspace)
+        """Return ``workspace`` of shape ``key`` (kept while its shape is among the latest); one
+        given back twice (a graph's second backward pass, ``retain_graph``) is listed once."""
+        free = self.free.get(key)
+        if free is not None and not any(w is workspace for w in free):
+            free.append(workspace)

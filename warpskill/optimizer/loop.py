@@ -82,7 +82,7 @@ class _AdamRun:
                  store: Checkpoint, label: str):
         self.modules, self.learning_rate, self.config, self.store, self.label = modules, learning_rate, config, store, label
         self.optimizer = torch.optim.Adam([{"params": list(m.parameters())} for m in modules], lr=learning_rate,
-                                          amsgrad=True)
+                                          amsgrad=True, foreach=True)
         self.plateaus = [Plateau(config.plateau_patience, config.plateau_factor) for _ in modules]
         self.best_loss, self.best_state, self.start = [float("inf")] * len(modules), [copy_state(m) for m in modules], 0
         self.trail: list[list[float]] = [[] for _ in modules]  # each module's best loss after each of its iterations
