@@ -48,6 +48,9 @@ def test_scene_config_rejects_missing_and_unknown_keys(tmp_path):
     bad.write_text(text.replace("iterations = 12", "iterations = 12.5"))
     with pytest.raises(SceneConfigError, match=r"newton.iterations: expected int"):
         read_scene_config(bad)
+    bad.write_text(text.replace("object_contact_timeconst = 0.004", "object_contact_timeconst = 0.003"))
+    with pytest.raises(SceneConfigError, match=r"object_contact_timeconst \(0.003 s\) must be at least twice"):
+        read_scene_config(bad)
 
 
 def test_example_annotations_make_a_demonstration():

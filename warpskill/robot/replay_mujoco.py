@@ -94,7 +94,7 @@ def build_spec(recon: Reconstruction, base_pose: np.ndarray):
     obj.add_freejoint(name=OBJECT_JOINT)
     obj.add_geom(name=OBJECT_BODY, type=mujoco.mjtGeom.mjGEOM_BOX, size=recon.object_size / 2, mass=config.object.mass,
                  friction=contact.mujoco_friction, condim=contact.condim, contype=1, conaffinity=3,
-                 rgba=config.object.rgba)
+                 solref=[config.mujoco.object_contact_timeconst, 1.0], rgba=config.object.rgba)
     spec.add_exclude(bodyname1="panda_link0", bodyname2="world")
     spec.add_exclude(bodyname1="panda_link1", bodyname2="world")
     kv = panda.arm_kv
