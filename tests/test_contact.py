@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 import warp as wp
 from device_support import warp_devices
-
 from warpskill.kernels.contact import contact_impulses, hand_tip_distance
 
 KP, KV, MU = 500.0, 5.0, 10.0

@@ -192,6 +192,20 @@ def test_a_thin_object_is_pushed_by_the_fingertips_above_the_table():
         assert fingertip[2] > -size[2] / 2, pose.name  # above the table
 
 
+def test_a_thin_object_is_grasped_as_low_as_the_table_allows():
+    from warpskill.robot.grasps import FINGERTIP_BELOW_TCP, TABLE_CLEARANCE, TOP_DEPTH, candidate_poses
+
+    for height in (0.014, 0.02, 0.1):  # a pen, a phone, a box
+        size = np.array([0.15, 0.04, height])
+        tops = [pose for pose in candidate_poses(np.eye(3), size) if pose.name in ("top_y", "top_y_flip")]
+        assert tops
+        for pose in tops:
+            fingertip = pose.pose[2, 3] - FINGERTIP_BELOW_TCP  # pointing down: along -z
+            # As deep as the grasp goes (TOP_DEPTH below the top), never closer to the table than the clearance.
+            assert fingertip == pytest.approx(max(height / 2 - TOP_DEPTH - FINGERTIP_BELOW_TCP,
+                                                  -height / 2 + TABLE_CLEARANCE), abs=1e-9), (height, pose.name)
+
+
 @pytest.mark.parametrize("action", ["push_left_to_right", "push_right_to_left"])
 def test_the_lead_in_passes_over_a_tall_object_without_knocking_it_over(action):
     require_robot("mujoco")

@@ -35,6 +35,7 @@ SHALLOW_DEPTH = 0.015  # [m] the same for a shallow top grasp
 EDGE_DEPTH = 0.025  # [m] how far past the top edge (along the approach) the pads' centre goes
 SIDE_DEPTH = 0.03  # [m] how far into a side face the pads' centre goes
 FINGERTIP_BELOW_TCP = 0.012  # [m] the finger pads end this far beyond the TCP along the approach
+TABLE_CLEARANCE = 0.006  # [m] a top grasp's fingertips stay this far above the object's bottom (planner: 5 mm)
 MIN_PUSH_HEIGHT = 0.02  # [m] lowest TCP height above the object's bottom for a push (the fingertips clear the table)
 PUSH_BELOW_TOP = 0.005  # [m] a push's TCP stays this far below the top face (thin objects: pressed at their top edge)
 HOOK_HEIGHT = 0.02  # [m] TCP height above the object's bottom of a hook (low: lagging fingers ride over a higher one)
@@ -130,7 +131,7 @@ def candidate_poses(object_rot: np.ndarray, object_size: np.ndarray, *, push_hei
                                        standoff))
     fits = lambda axis: size[axis] <= MAX_OPENING - FIT_MARGIN  # noqa: E731
     for top_depth, suffix in ((TOP_DEPTH, ""), (SHALLOW_DEPTH, "_shallow")):
-        depth = min(top_depth, size[up_axis] - FINGERTIP_BELOW_TCP - 0.008)
+        depth = min(top_depth, size[up_axis] - FINGERTIP_BELOW_TCP - TABLE_CLEARANCE)
         for j in side_axes:
             if fits(j):
                 for sign in (1.0, -1.0):
