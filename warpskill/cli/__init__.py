@@ -64,22 +64,12 @@ def main(argv: list[str] | None = None) -> int:
         return 1
 
 
-class _Console(logging.Handler):
-    """Each record's message as one line on the standard output of the moment (pytest swaps it)."""
-
-    def emit(self, record: logging.LogRecord) -> None:
-        try:
-            sys.stdout.write(self.format(record) + "\n")
-            sys.stdout.flush()
-        except Exception:  # logging's own way: report, never raise
-            self.handleError(record)
-
-
 @contextlib.contextmanager
 def console_log():
     """While a command runs, the library's progress and warnings (the ``warpskill`` loggers, INFO and
-    up) are shown on the standard output, one plain line each, as the command's own lines."""
-    logger, handler = logging.getLogger("warpskill"), _Console()
+    up) are shown on the standard output of the moment (pytest swaps it), one plain line each, as
+    the command's own lines."""
+    logger, handler = logging.getLogger("warpskill"), logging.StreamHandler(sys.stdout)
     level = logger.level
     logger.addHandler(handler)
     logger.setLevel(logging.INFO)
