@@ -57,11 +57,11 @@ def _add_synthetic(bench) -> None:
     synthetic.add_argument("--input", choices=("masks", "boxes"), default="masks",
                            help="true silhouettes with mask noise, or ellipses in their boxes as for Something-Else")
     synthetic.add_argument("--seed-start", type=int, default=0, help="first seed")
-    synthetic.add_argument("--scenarios", choices=("none", "real", "narrow", "turned", "flat"), default="none",
+    synthetic.add_argument("--scenarios", choices=("none", "real", "narrow", "turned", "flat", "askew"), default="none",
                            help="with --input boxes: also the held-out real videos' situations (real, mixed in by "
                                 "seed), static boxes narrower than the object (narrow, put actions), static "
-                                "boxes turned by up to 30 deg (turned, put actions), or long thin objects lying "
-                                "flat (flat)")
+                                "boxes turned by up to 30 deg (turned, put actions), long thin objects lying "
+                                "flat (flat), or lying flat at up to 69 deg (askew, pushes and pulls at 0)")
     synthetic.add_argument("--nouns", action="store_true",
                            help="give each object a noun whose typical size is its own times a log-normal spread")
     add_optimize_options(synthetic, known_names=True)

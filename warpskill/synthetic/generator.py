@@ -19,6 +19,7 @@ from warpskill.engine.raycast import raycast_masks
 from warpskill.engine.simulation import simulate
 from warpskill.geometry import is_held
 from warpskill.synthetic.scripts import (
+    ASKEW_OBJECT_YAW,
     TURNED_STATIC_YAW,
     Script,
     Variant,
@@ -48,7 +49,7 @@ the ellipses inscribed in per-frame boxes of them, as the Something-Else reader 
 (``"boxes"``; contact from annotator-like phases, scenes with the real videos' situations)."""
 
 
-SCENARIOS = ("none", "real", "narrow", "turned", "flat")
+SCENARIOS = ("none", "real", "narrow", "turned", "flat", "askew")
 """Which situations a ``"boxes"`` demonstration adds: the default ones only, also the held-out
 real videos' (:func:`real_scenarios`), a static box narrower than the object
 (:data:`~warpskill.synthetic.scripts.NARROW_STATIC`) or one turned by up to
@@ -131,7 +132,8 @@ def make_demonstration(
             put action's static box narrower than the object and deep, ``"turned"`` turns it by
             up to :data:`~warpskill.synthetic.scripts.TURNED_STATIC_YAW`, ``"flat"`` makes the
             object long, thin and lying flat (:data:`~warpskill.synthetic.scripts.FLAT_LONG`,
-            a pen or a fork on the table). ``"real"`` mixes in
+            a pen or a fork on the table), ``"askew"`` as well at a yaw of up to
+            :data:`~warpskill.synthetic.scripts.ASKEW_OBJECT_YAW`. ``"real"`` mixes in
             the held-out real videos' situations, chosen by :func:`real_scenarios` (a
             deterministic function of action and seed): the spoilers of
             :data:`warpskill.synthetic.spoil.SPOILERS` and tall thin objects; the boxes and
@@ -184,8 +186,10 @@ def _variant(action: str, seed: int, scenarios: str, chosen: tuple[str, ...],
         variant = replace(variant, narrow_static=True, wide_static=0.0)
     if scenarios == "turned":
         variant = replace(variant, static_yaw=TURNED_STATIC_YAW)
-    if scenarios == "flat":
+    if scenarios in ("flat", "askew"):
         variant = replace(variant, object_size=flat_long_size(rng))
+    if scenarios == "askew":
+        variant = replace(variant, object_yaw=ASKEW_OBJECT_YAW)
     return variant
 
 

@@ -50,6 +50,7 @@ class Variant:
     object_size: tuple[float, float, float] | None = None  # [m] the object's edges instead of drawn ones
     narrow_static: bool = False  # the static box narrower than the object and deeper than wide
     static_yaw: float = 0.2  # [rad] the static box's yaw is drawn in [-static_yaw, static_yaw]
+    object_yaw: float = 0.3  # [rad] the object's yaw is drawn in [-object_yaw, object_yaw] (not pushed or pulled)
 
 
 NARROW_STATIC = ((0.4, 0.8), (0.12, 0.2))
@@ -70,6 +71,10 @@ TALL_THIN = ((0.02, 0.045), (0.02, 0.045), (0.15, 0.24))
 FLAT_LONG = ((0.12, 0.20), (0.02, 0.04), (0.01, 0.025))
 """[m] ranges of the width, depth and height of a long thin object lying flat (a pen, a
 fork, a toothbrush on the table)."""
+
+ASKEW_OBJECT_YAW = 1.2
+"""[rad] half-range of an askew flat object's yaw (69 deg: cutlery and pens lie at any angle
+to the camera; pushed and pulled objects keep yaw 0, their hand paths run along x)."""
 
 
 def flat_long_size(rng: np.random.Generator) -> tuple[float, float, float]:
@@ -96,7 +101,8 @@ def make_script(action: str, rng: np.random.Generator, duration: float, variant:
     size = np.array([u(0.05, 0.11), u(0.05, 0.11), u(0.05, 0.12)])
     if variant is not None and variant.object_size is not None:
         size = np.array(variant.object_size)
-    yaw = u(-0.3, 0.3)
+    half_range = variant.object_yaw if variant is not None else Variant.object_yaw
+    yaw = u(-half_range, half_range)
     centre = np.array([u(-0.08, 0.08), u(0.55, 0.7), size[2] / 2])
     static_pos, static_size, static_yaw = _static_box(action, centre, size, variant, rng)
     t_on, t_end = 0.3 * duration, duration
