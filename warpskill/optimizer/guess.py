@@ -3,7 +3,9 @@
 The hand's apparent width (its radius is known; :func:`~warpskill.optimizer.measurements.hand_depth`)
 gives the scene's depth; with the prior elevation, the object's box bottom at that depth
 gives the camera height. Cuboids stand upright on the ground below their mask's bottom
-edge; the hand's tip is at the hand pixel nearest the object, at the object's depth.
+edge; the hand's tip is at the hand pixel nearest the object, at the object's depth. A long
+object (a fork, a pen: its noun's typical width several times its depth) lies instead along
+its box's diagonal on the ground, in its noun's proportions.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import torch
 
 from warpskill.contract.camera import Intrinsics
 from warpskill.engine.projection import camera_rotation
+from warpskill.engine.rotations import yaw_rotation
 from warpskill.geometry import frame_from_axis
 from warpskill.optimizer.measurements import TYPICAL_HAND_TILT, MaskGeometry, fill_missing, hand_depth
 from warpskill.optimizer.measurements import hand_tilt as measured_hand_tilt
@@ -39,7 +42,9 @@ MIN_RAY_DESCENT = 1e-3  # a ray's downward slope (z per unit depth) below which 
 FRONT_FACE_SHARE = 0.6  # share of an upright cuboid's box height that is its front face (above it: its top)
 CUBOID_HEIGHT_RANGE = (0.03, 0.4)  # [m] the heights a first guess may give a cuboid
 CUBOID_SIZE_RANGE = (0.03, 0.5)  # [m] the sizes a first guess may give a cuboid, each axis
+MIN_LONG_SIZE = 0.015  # [m] a long object's smallest first edge: above the size floor, where its gradient is alive
 APPROACH_GROWTH = 1.25  # a carried cuboid's box this much wider than at first: it has come closer
+LONG_ASPECT = 2.5  # a typical width this many times the typical depth makes a noun long (its start lies turned)
 
 
 @dataclass
@@ -85,6 +90,7 @@ def initial_guess(
     carried: np.ndarray | None = None,
     hand_tilt: bool = True,
     typical_camera_height: float = LossWeights.typical_camera_height,
+    object_shape: tuple[float, float, float] | None = None,
 ) -> SceneTrajectories:
     """A rough scene read off the masks' geometry, before any optimisation.
 
@@ -110,6 +116,11 @@ def initial_guess(
             it at a typical forearm's.
         typical_camera_height: [m] the camera height where the masks give none
             (:attr:`LossWeights.typical_camera_height`).
+        object_shape: the object's typical (height, width, depth) [m] by its noun; where the
+            width is at least :data:`LONG_ASPECT` times the depth, the object starts lying
+            along its box's diagonal (:func:`lying_along_box`) and at its typical length, the
+            whole scene scaled about the camera's foot to give it that length (the view
+            unchanged; the camera kept within :data:`CAMERA_HEIGHT_RANGE`). None: upright, no yaw.
 
     Raises:
         ValueError: an unknown ``object_depth``, or ``"on the static"`` without a static box
@@ -132,6 +143,12 @@ def initial_guess(
     camera = GuessCamera(K, R_wc, np.array([0.0, 0.0, height]), targets.shape[-1])
 
     object_pos, object_size, _ = _cuboid_from_masks(object_geom, camera, carried, object_depth is ObjectDepth.GROUND)
+    object_yaw, ruler = 0.0, 1.0
+    long = object_shape is not None and object_shape[1] >= LONG_ASPECT * object_shape[2]
+    lying = _long_object(object_pos, object_size, object_shape, object_geom, hand_geom, camera, carried,
+                         np.asarray(contact, bool)) if long else None
+    if lying is not None:
+        object_pos, object_size, object_yaw, ruler = lying
     static_pos, static_size = [], []
     for j in range(num_static):
         pos, size, visible = _cuboid_from_masks(MaskGeometry(targets[:, 2 + j]), camera, carried, True)
@@ -144,7 +161,8 @@ def initial_guess(
     toward = measured_hand_tilt(hand_geom, K) if hand_width and hand_tilt else None
     hand_pos, hand_rot = _hand_poses(hand_geom, object_centroid, object_pos, camera,
                                      TYPICAL_HAND_TILT if toward is None else toward)
-    return _scene(hand_pos, hand_rot, object_pos, object_size, static_pos, static_size, height)
+    return _scene(ruler * hand_pos, hand_rot, ruler * object_pos, ruler * object_size, object_yaw,
+                  [ruler * pos for pos in static_pos], [ruler * size for size in static_size], ruler * height)
 
 
 def _camera_height(depth: float, object_geom: MaskGeometry, carried: np.ndarray, K: np.ndarray,
@@ -203,6 +221,72 @@ def _cuboid_from_masks(
     return fill_missing(pos, geom.visible), size, np.asarray(geom.visible)
 
 
+def lying_along_box(ground: tuple[float, float], shape: tuple[float, float, float]) -> tuple[np.ndarray, float]:
+    """Size (3,) [m] and yaw [rad, 0..pi/2] of an object of ``shape``'s proportions (height,
+    width, depth) lying flat whose footprint spans ``ground`` = (across, along) [m], its box's
+    extents on the ground across and along the view.
+
+    A thin rectangle of length L and width w = L / a (a = width / depth) turned by yaw spans
+    ``L cos + w sin`` across and ``L sin + w cos`` along; their ratio r gives
+    ``tan(yaw) = (a - r) / (r a - 1)``: 0 for a box at least a times wider than deep, pi/2 for
+    one at least a times deeper than wide. The length comes from the extent across, measured
+    at the box's bottom edge: the extent along also holds the object's height and, near the
+    horizon, grows without bound. Boxes do not tell the two diagonals apart: the caller picks
+    the sign.
+    """
+    across, along = ground
+    aspect = shape[1] / shape[2]
+    ratio = across / along
+    yaw = float(np.clip(np.arctan2(aspect - ratio, ratio * aspect - 1), 0.0, np.pi / 2))
+    length = across / (np.cos(yaw) + np.sin(yaw) / aspect)
+    return np.array([length, length / aspect, length * shape[0] / shape[1]]), yaw
+
+
+def _long_object(
+    pos: np.ndarray, size: np.ndarray, shape: tuple[float, float, float], geom: MaskGeometry, hand: MaskGeometry,
+    camera: GuessCamera, carried: np.ndarray, contact: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, float, float] | None:
+    """A long object's centres (N, 3), size (3,) [m] and yaw [rad] lying along its box's
+    diagonal (:func:`lying_along_box`), from the boxes' ground extents where it rests whole in
+    view, and the scale (the ruler) that gives it its typical length, ``shape[1]``, within
+    :data:`CAMERA_HEIGHT_RANGE`; None where it never rests whole in view (the upright cuboid
+    ``pos``, ``size`` stays). The diagonal is the one the hand touches: a hand below and right
+    of the object's centre (or above and left) holds one end of a box-wide object running from
+    top left to bottom right.
+    """
+    ground = _ground_extent(geom, camera, ~carried, height=0.0)
+    if ground is None:
+        return None
+    new_size, yaw = lying_along_box(ground, shape)
+    ground = _ground_extent(geom, camera, ~carried, height=float(new_size[2])) or ground  # the far edge is the top's
+    new_size, yaw = lying_along_box(ground, shape)
+    touched = contact & geom.visible & hand.visible
+    if touched.any():
+        du, dv = np.median(hand.centroid[touched] - geom.centroid[touched], 0)
+        yaw = -yaw if du * dv > 0 else yaw
+    along = abs(np.sin(yaw)) * new_size[0] + np.cos(yaw) * new_size[1]
+    shift = np.array([0.0, 0.5 * (along - size[1]), 0.5 * (new_size[2] - size[2])])
+    ruler = float(np.clip(shape[1] / new_size[0], *np.divide(CAMERA_HEIGHT_RANGE, camera.position[2])))
+    return pos + shift, np.clip(ruler * new_size, MIN_LONG_SIZE, CUBOID_SIZE_RANGE[1]) / ruler, yaw, ruler
+
+
+def _ground_extent(geom: MaskGeometry, camera: GuessCamera, frames: np.ndarray,
+                   height: float) -> tuple[float, float] | None:
+    """Median (across, along) [m] of the object's boxes on the ground in ``frames`` (N,) where
+    the box is whole in view: across at the bottom edge's depth, along from the bottom edge on
+    the ground to the top edge on the plane at ``height`` [m]; None without such a frame."""
+    K = camera.K
+    whole = geom.visible & (geom.box[:, 0] > 0) & (geom.box[:, 1] > 0) & (geom.box[:, 2] < camera.width)
+    spans = []
+    for k in np.flatnonzero(whole & frames):
+        u0, v0, u1, v1 = geom.box[k]
+        near, depth = camera.plane_point(np.array([0.5 * (u0 + u1), v1]), 0.0)
+        far, _ = camera.plane_point(np.array([0.5 * (u0 + u1), v0]), height)
+        if far[1] > near[1]:
+            spans.append(((u1 - u0) * depth / K[0, 0], far[1] - near[1]))
+    return tuple(np.median(spans, 0)) if spans else None
+
+
 def _placed_on_static(
     object_pos: np.ndarray, object_size: np.ndarray, geom: MaskGeometry, contact: np.ndarray, resting: np.ndarray,
     static_pos: np.ndarray, static_size: np.ndarray, camera: GuessCamera,
@@ -258,11 +342,12 @@ def _hand_poses(
 
 
 def _scene(
-    hand_pos: np.ndarray, hand_rot: np.ndarray, object_pos: np.ndarray, object_size: np.ndarray,
+    hand_pos: np.ndarray, hand_rot: np.ndarray, object_pos: np.ndarray, object_size: np.ndarray, object_yaw: float,
     static_pos: list[np.ndarray], static_size: list[np.ndarray], camera_height: float,
 ) -> SceneTrajectories:
-    """The guessed scene in float32 tensors: the object upright, the static boxes on the
-    ground with no yaw, the camera at ``camera_height`` [m] and :data:`INITIAL_CAMERA_ELEVATION`."""
+    """The guessed scene in float32 tensors: the object upright at ``object_yaw`` [rad], the
+    static boxes on the ground with no yaw, the camera at ``camera_height`` [m] and
+    :data:`INITIAL_CAMERA_ELEVATION`."""
     f = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
     N, num_static = len(hand_pos), len(static_pos)
     static_size_t = f(np.reshape(static_size, (num_static, 3)))
@@ -272,7 +357,7 @@ def _scene(
         hand_pos=f(hand_pos),
         hand_rot=f(hand_rot),
         object_pos=f(object_pos),
-        object_rot=torch.eye(3).expand(N, 3, 3).clone(),
+        object_rot=yaw_rotation(torch.full((N,), object_yaw)),
         object_size=f(object_size),
         static_pos=s_pos,
         static_rot=s_rot,

@@ -71,6 +71,9 @@ class Evidence:
         typical_edges: [m] the edges, ascending, of the typical size of the object's noun
             (each at least :data:`~warpskill.optimizer.scene.MIN_OBJECT_SIZE`) where its size
             prior applies (``weights.object_noun_size`` on); None elsewhere.
+        typical_shape: [m] that typical size as (height, width, depth), where the prior
+            applies: a long object's first guess lies in its proportions
+            (:func:`~warpskill.optimizer.guess.initial_guess`); None elsewhere.
     """
 
     demo: Demonstration
@@ -84,6 +87,7 @@ class Evidence:
     covering: np.ndarray
     enclosed: np.ndarray
     typical_edges: tuple[float, float, float] | None = None
+    typical_shape: tuple[float, float, float] | None = None
 
     @property
     def placement(self) -> np.ndarray:
@@ -105,9 +109,10 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
     typical = typical_size(noun)
     weights = config.weights.for_scene(known_length=bool(known), object_from_boxes=bool(inputs.targets.boxed[1]),
                                        noun_size_known=typical is not None)
-    typical_edges = None
+    typical_edges = typical_shape = None
     if typical is not None and weights.object_noun_size > 0:  # no cuboid is thinner than MIN_OBJECT_SIZE (paper)
         typical_edges = tuple(max(float(edge), MIN_OBJECT_SIZE) for edge in typical.edges)
+        typical_shape = (typical.height, typical.width, typical.depth)
     held = held_after_contact(inputs.masks.cpu().numpy(), inputs.contact_signal)
     rest = cut = covering = enclosed = np.zeros(demo.num_frames, dtype=bool)
     if demo.num_static:
@@ -116,7 +121,7 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
         covering = covers_static_top(full, inputs.contact_signal)
         enclosed = within_static_across(full, inputs.contact_signal)
     return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut), covering, enclosed,
-                    typical_edges)
+                    typical_edges, typical_shape)
 
 
 @dataclass
@@ -160,7 +165,7 @@ def stage_a_candidates(evidence: Sequence[Evidence], typical_camera_height: floa
                                   seen.demo.num_static, object_depth=hypothesis, resting=placed,
                                   hand_width=not given.hand_boxed, hand_tilt=not seen.known,
                                   carried=given.contact_signal | seen.held,
-                                  typical_camera_height=typical_camera_height)
+                                  typical_camera_height=typical_camera_height, object_shape=seen.typical_shape)
             if any(c.demo == i and guess.same_as(c.guess) for c in candidates):
                 continue
             support = torch.as_tensor(placed, dtype=torch.float32, device=device) if on_static else None
