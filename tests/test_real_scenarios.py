@@ -6,7 +6,7 @@ import pytest
 from warpskill.contract.actions import ACTIONS
 from warpskill.data.box_annotations import something_else_demonstration
 from warpskill.synthetic import make_demonstration, real_scenarios
-from warpskill.synthetic.scripts import NARROW_STATIC, TALL_THIN, TURNED_STATIC_YAW, Variant
+from warpskill.synthetic.scripts import ASKEW_OBJECT_YAW, NARROW_STATIC, TALL_THIN, TURNED_STATIC_YAW, Variant
 from warpskill.synthetic.spoil import (
     as_annotations,
     enters_view,
@@ -140,6 +140,12 @@ def static_yaw(truth: dict) -> float:
     return float(np.arctan2(rotation[1, 0], rotation[0, 0]))
 
 
+def object_yaw(truth: dict) -> float:
+    """The object's first yaw [rad] from its ground-truth rotation."""
+    rotation = truth["object_rot"][0]
+    return float(np.arctan2(rotation[1, 0], rotation[0, 0]))
+
+
 def test_turned_static_boxes_turn_the_same_scene_farther():
     yaws = []
     for seed in range(4):
@@ -164,3 +170,16 @@ def test_narrow_static_boxes_are_narrower_than_the_object_and_deep(action):
         assert shallow <= depth <= deep
     plain = make_demonstration(action, seed=0, image_size=(H, W), duration=2.0, input="boxes").truth
     assert plain["static_size"][0, 0] > plain["object_size"][0]
+
+
+def test_askew_objects_are_flat_scenes_turned_farther_but_pushed_ones_stay_square_on():
+    yaws = []
+    for seed in range(4):
+        kwargs = dict(seed=seed, image_size=(H, W), duration=2.0, input="boxes")
+        flat = make_demonstration("put_next_to", scenarios="flat", **kwargs).truth
+        askew = make_demonstration("put_next_to", scenarios="askew", **kwargs).truth
+        assert np.allclose(askew["object_size"], flat["object_size"])  # the same long thin object
+        assert abs(object_yaw(askew)) <= ASKEW_OBJECT_YAW
+        yaws.append(abs(object_yaw(askew)))
+        assert object_yaw(make_demonstration("push_left_to_right", scenarios="askew", **kwargs).truth) == 0.0
+    assert max(yaws) > Variant.object_yaw  # beyond what the plain scenes ever draw
