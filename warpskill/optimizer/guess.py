@@ -91,7 +91,6 @@ def initial_guess(
     hand_tilt: bool = True,
     typical_camera_height: float = LossWeights.typical_camera_height,
     object_shape: tuple[float, float, float] | None = None,
-    diagonal: int = 0,
 ) -> SceneTrajectories:
     """A rough scene read off the masks' geometry, before any optimisation.
 
@@ -122,9 +121,6 @@ def initial_guess(
             along its box's diagonal (:func:`lying_along_box`) and at its typical length, the
             whole scene scaled about the camera's foot to give it that length (the view
             unchanged; the camera kept within :data:`CAMERA_HEIGHT_RANGE`). None: upright, no yaw.
-        diagonal: which of its box's two diagonals a long object lies along (boxes do not
-            tell): 1 turned by a positive yaw, -1 by a negative one, 0 the one its hand
-            touches (see :func:`_long_object`).
 
     Raises:
         ValueError: an unknown ``object_depth``, or ``"on the static"`` without a static box
@@ -148,8 +144,9 @@ def initial_guess(
 
     object_pos, object_size, _ = _cuboid_from_masks(object_geom, camera, carried, object_depth is ObjectDepth.GROUND)
     object_yaw, ruler = 0.0, 1.0
+    long = object_shape is not None and object_shape[1] >= LONG_ASPECT * object_shape[2]
     lying = _long_object(object_pos, object_size, object_shape, object_geom, hand_geom, camera, carried,
-                         np.asarray(contact, bool), diagonal) if is_long(object_shape) else None
+                         np.asarray(contact, bool)) if long else None
     if lying is not None:
         object_pos, object_size, object_yaw, ruler = lying
     static_pos, static_size = [], []
@@ -224,12 +221,6 @@ def _cuboid_from_masks(
     return fill_missing(pos, geom.visible), size, np.asarray(geom.visible)
 
 
-def is_long(shape: tuple[float, float, float] | None) -> bool:
-    """Whether a typical (height, width, depth) is a long object's: width at least
-    :data:`LONG_ASPECT` times the depth (a fork, a pen, chopsticks; not a mug or a phone)."""
-    return shape is not None and shape[1] >= LONG_ASPECT * shape[2]
-
-
 def lying_along_box(ground: tuple[float, float], shape: tuple[float, float, float]) -> tuple[np.ndarray, float]:
     """Size (3,) [m] and yaw [rad, 0..pi/2] of an object of ``shape``'s proportions (height,
     width, depth) lying flat whose footprint spans ``ground`` = (across, along) [m], its box's
@@ -253,15 +244,15 @@ def lying_along_box(ground: tuple[float, float], shape: tuple[float, float, floa
 
 def _long_object(
     pos: np.ndarray, size: np.ndarray, shape: tuple[float, float, float], geom: MaskGeometry, hand: MaskGeometry,
-    camera: GuessCamera, carried: np.ndarray, contact: np.ndarray, diagonal: int,
+    camera: GuessCamera, carried: np.ndarray, contact: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, float, float] | None:
     """A long object's centres (N, 3), size (3,) [m] and yaw [rad] lying along its box's
     diagonal (:func:`lying_along_box`), from the boxes' ground extents where it rests whole in
     view, and the scale (the ruler) that gives it its typical length, ``shape[1]``, within
     :data:`CAMERA_HEIGHT_RANGE`; None where it never rests whole in view (the upright cuboid
-    ``pos``, ``size`` stays). The ``diagonal`` (the sign of the yaw) is given, or (0) the one
-    the hand touches: a hand below and right of the object's centre (or above and left) holds
-    one end of a box-wide object running from top left to bottom right.
+    ``pos``, ``size`` stays). The diagonal is the one the hand touches: a hand below and right
+    of the object's centre (or above and left) holds one end of a box-wide object running from
+    top left to bottom right.
     """
     ground = _ground_extent(geom, camera, ~carried, height=0.0)
     if ground is None:
@@ -270,9 +261,7 @@ def _long_object(
     ground = _ground_extent(geom, camera, ~carried, height=float(new_size[2])) or ground  # the far edge is the top's
     new_size, yaw = lying_along_box(ground, shape)
     touched = contact & geom.visible & hand.visible
-    if diagonal:
-        yaw *= diagonal
-    elif touched.any():
+    if touched.any():
         du, dv = np.median(hand.centroid[touched] - geom.centroid[touched], 0)
         yaw = -yaw if du * dv > 0 else yaw
     along = abs(np.sin(yaw)) * new_size[0] + np.cos(yaw) * new_size[1]

@@ -25,7 +25,7 @@ import torch
 from warpskill.contract.demonstration import Demonstration
 from warpskill.nouns.typical import typical_size
 from warpskill.optimizer.config import OptimizeConfig
-from warpskill.optimizer.guess import ObjectDepth, initial_guess, is_long
+from warpskill.optimizer.guess import ObjectDepth, initial_guess
 from warpskill.optimizer.inputs import (
     WorkingInputs,
     covers_static_top,
@@ -150,10 +150,8 @@ def stage_a_candidates(evidence: Sequence[Evidence], typical_camera_height: floa
     "On the static" is tried only where the object may stand on the static box's top
     (:attr:`Evidence.placement`), without the prior that puts it behind the box; a guess equal
     to an earlier one of the same demonstration (the object's box bottom stays on one row)
-    is fitted once. A long object's rivals start along either diagonal of its box (boxes do not
-    tell them apart; the placement on the static box, which goes on to the physics whatever
-    its loss, along the one the hand touches). The hand's tilt read off its foreshortening
-    starts the hand only where the scale is free: with a known length it was a worse start.
+    is fitted once. The hand's tilt read off its foreshortening starts the hand only where
+    the scale is free: with a known length it was a worse start.
     """
     candidates: list[Candidate] = []
     for i, seen in enumerate(evidence):
@@ -163,17 +161,15 @@ def stage_a_candidates(evidence: Sequence[Evidence], typical_camera_height: floa
             placed = seen.placement
             if on_static and not placed.any():
                 continue
-            for diagonal in (1, -1) if is_long(seen.typical_shape) and not on_static else (0,):
-                guess = initial_guess(given.masks.cpu().numpy(), given.contact_signal, given.intrinsics,
-                                      seen.demo.num_static, object_depth=hypothesis, resting=placed,
-                                      hand_width=not given.hand_boxed, hand_tilt=not seen.known,
-                                      carried=given.contact_signal | seen.held,
-                                      typical_camera_height=typical_camera_height, object_shape=seen.typical_shape,
-                                      diagonal=diagonal)
-                if any(c.demo == i and guess.same_as(c.guess) for c in candidates):
-                    continue
-                support = torch.as_tensor(placed, dtype=torch.float32, device=device) if on_static else None
-                candidates.append(Candidate(i, guess, support, InitialParameters(guess, seen.known).to(device)))
+            guess = initial_guess(given.masks.cpu().numpy(), given.contact_signal, given.intrinsics,
+                                  seen.demo.num_static, object_depth=hypothesis, resting=placed,
+                                  hand_width=not given.hand_boxed, hand_tilt=not seen.known,
+                                  carried=given.contact_signal | seen.held,
+                                  typical_camera_height=typical_camera_height, object_shape=seen.typical_shape)
+            if any(c.demo == i and guess.same_as(c.guess) for c in candidates):
+                continue
+            support = torch.as_tensor(placed, dtype=torch.float32, device=device) if on_static else None
+            candidates.append(Candidate(i, guess, support, InitialParameters(guess, seen.known).to(device)))
     return candidates
 
 
