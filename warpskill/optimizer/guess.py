@@ -116,11 +116,9 @@ def initial_guess(
             it at a typical forearm's.
         typical_camera_height: [m] the camera height where the masks give none
             (:attr:`LossWeights.typical_camera_height`).
-        object_shape: the object's typical (height, width, depth) [m] by its noun; where the
-            width is at least :data:`LONG_ASPECT` times the depth, the object starts lying
-            along its box's diagonal (:func:`lying_along_box`) and at its typical length, the
-            whole scene scaled about the camera's foot to give it that length (the view
-            unchanged; the camera kept within :data:`CAMERA_HEIGHT_RANGE`). None: upright, no yaw.
+        object_shape: the object's typical (height, width, depth) [m] by its noun: a long one
+            (:data:`LONG_ASPECT`) starts lying along its box's diagonal at its typical length,
+            the scene scaled to match (:func:`_long_object`). None: upright, no yaw.
 
     Raises:
         ValueError: an unknown ``object_depth``, or ``"on the static"`` without a static box
@@ -143,12 +141,9 @@ def initial_guess(
     camera = GuessCamera(K, R_wc, np.array([0.0, 0.0, height]), targets.shape[-1])
 
     object_pos, object_size, _ = _cuboid_from_masks(object_geom, camera, carried, object_depth is ObjectDepth.GROUND)
-    object_yaw, ruler = 0.0, 1.0
-    long = object_shape is not None and object_shape[1] >= LONG_ASPECT * object_shape[2]
     lying = _long_object(object_pos, object_size, object_shape, object_geom, hand_geom, camera, carried,
-                         np.asarray(contact, bool)) if long else None
-    if lying is not None:
-        object_pos, object_size, object_yaw, ruler = lying
+                         np.asarray(contact, bool))
+    object_pos, object_size, object_yaw, ruler = lying or (object_pos, object_size, 0.0, 1.0)
     static_pos, static_size = [], []
     for j in range(num_static):
         pos, size, visible = _cuboid_from_masks(MaskGeometry(targets[:, 2 + j]), camera, carried, True)
@@ -243,17 +238,21 @@ def lying_along_box(ground: tuple[float, float], shape: tuple[float, float, floa
 
 
 def _long_object(
-    pos: np.ndarray, size: np.ndarray, shape: tuple[float, float, float], geom: MaskGeometry, hand: MaskGeometry,
+    pos: np.ndarray, size: np.ndarray, shape: tuple[float, float, float] | None, geom: MaskGeometry, hand: MaskGeometry,
     camera: GuessCamera, carried: np.ndarray, contact: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, float, float] | None:
     """A long object's centres (N, 3), size (3,) [m] and yaw [rad] lying along its box's
     diagonal (:func:`lying_along_box`), from the boxes' ground extents where it rests whole in
-    view, and the scale (the ruler) that gives it its typical length, ``shape[1]``, within
-    :data:`CAMERA_HEIGHT_RANGE`; None where it never rests whole in view (the upright cuboid
-    ``pos``, ``size`` stays). The diagonal is the one the hand touches: a hand below and right
-    of the object's centre (or above and left) holds one end of a box-wide object running from
-    top left to bottom right.
+    view, and the scale (the ruler) that gives it its typical length, ``shape[1]``: the whole
+    scene scaled about the camera's foot (the view unchanged), the camera kept within
+    :data:`CAMERA_HEIGHT_RANGE`; None for a shape that is not long (width under
+    :data:`LONG_ASPECT` times depth, or no shape) or an object never at rest whole in view (the
+    upright cuboid ``pos``, ``size`` stays). The diagonal is the one the hand touches: a hand
+    below and right of the object's centre (or above and left) holds one end of a box-wide
+    object running from top left to bottom right.
     """
+    if shape is None or shape[1] < LONG_ASPECT * shape[2]:
+        return None
     ground = _ground_extent(geom, camera, ~carried, height=0.0)
     if ground is None:
         return None
