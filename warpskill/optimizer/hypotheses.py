@@ -68,12 +68,10 @@ class Evidence:
             static's (:func:`~warpskill.optimizer.inputs.covers_static_top`).
         enclosed: (N,) bool, frames after the release where the object's box lies within the
             static's columns (:func:`~warpskill.optimizer.inputs.within_static_across`).
-        typical_edges: [m] the edges, ascending, of the typical size of the object's noun
-            (each at least :data:`~warpskill.optimizer.scene.MIN_OBJECT_SIZE`) where its size
-            prior applies (``weights.object_noun_size`` on); None elsewhere.
-        typical_shape: [m] that typical size as (height, width, depth), where the prior
-            applies: a long object's first guess lies in its proportions
-            (:func:`~warpskill.optimizer.guess.initial_guess`); None elsewhere.
+        typical_shape: [m] the typical size of the object's noun as (height, width, depth)
+            where its size prior applies (``weights.object_noun_size`` on; a long object's
+            first guess lies in its proportions, :func:`~warpskill.optimizer.guess.initial_guess`);
+            None elsewhere.
     """
 
     demo: Demonstration
@@ -86,8 +84,16 @@ class Evidence:
     behind: torch.Tensor | None
     covering: np.ndarray
     enclosed: np.ndarray
-    typical_edges: tuple[float, float, float] | None = None
     typical_shape: tuple[float, float, float] | None = None
+
+    @property
+    def typical_edges(self) -> tuple[float, float, float] | None:
+        """[m] ``typical_shape``'s edges, ascending, each at least
+        :data:`~warpskill.optimizer.scene.MIN_OBJECT_SIZE` (no cuboid is thinner, as in the
+        paper): what the size prior compares; None where it does not apply."""
+        if self.typical_shape is None:
+            return None
+        return tuple(max(edge, MIN_OBJECT_SIZE) for edge in sorted(self.typical_shape))
 
     @property
     def placement(self) -> np.ndarray:
@@ -109,9 +115,8 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
     typical = typical_size(noun)
     weights = config.weights.for_scene(known_length=bool(known), object_from_boxes=bool(inputs.targets.boxed[1]),
                                        noun_size_known=typical is not None)
-    typical_edges = typical_shape = None
-    if typical is not None and weights.object_noun_size > 0:  # no cuboid is thinner than MIN_OBJECT_SIZE (paper)
-        typical_edges = tuple(max(float(edge), MIN_OBJECT_SIZE) for edge in typical.edges)
+    typical_shape = None
+    if typical is not None and weights.object_noun_size > 0:
         typical_shape = (typical.height, typical.width, typical.depth)
     held = held_after_contact(inputs.masks.cpu().numpy(), inputs.contact_signal)
     rest = cut = covering = enclosed = np.zeros(demo.num_frames, dtype=bool)
@@ -121,7 +126,7 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
         covering = covers_static_top(full, inputs.contact_signal)
         enclosed = within_static_across(full, inputs.contact_signal)
     return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut), covering, enclosed,
-                    typical_edges, typical_shape)
+                    typical_shape)
 
 
 @dataclass
