@@ -67,24 +67,38 @@ def _kernels(dtype, max_sides: int):
         return vec3(wp.where(q == 1 or q == 2, one, -one), wp.where(q >= 2, one, -one), wp.where(v >= 4, one, -one))
 
     @wp.func
-    def camera_vertex(
-        f: int, k: int, v: int, n: int, radius: dtype, length: dtype, near: dtype,
-        hand_pos: wp.array(dtype=vec3), hand_rot: wp.array(dtype=mat33), cuboid_pos: wp.array2d(dtype=vec3),
-        cuboid_rot: wp.array2d(dtype=mat33), cuboid_size: wp.array2d(dtype=vec3), height: dtype, R: mat33,
-    ) -> vec3:
-        """Vertex v of primitive k in frame f, in camera coordinates [m]."""
-        world = vec3()
+    def prism_frame(
+        f: int, k: int, radius: dtype, length: dtype, near: dtype, hand_pos: wp.array(dtype=vec3),
+        hand_rot: wp.array(dtype=mat33), cuboid_pos: wp.array2d(dtype=vec3), cuboid_rot: wp.array2d(dtype=mat33),
+        cuboid_size: wp.array2d(dtype=vec3), height: dtype, R: mat33,
+    ) -> tuple[mat33, vec3, vec3]:
+        """(axes, origin, shape) of primitive k in frame f: its vertex v is axes local(v) + origin in camera
+        coordinates [m] (:func:`camera_vertex`); shape is the hand's (t0, t1, radius) or a cuboid's half size."""
+        rot = mat33()
+        pos = vec3()
+        shape = vec3()
         if k == 0:
-            forward = vec3(R[0, 2], R[1, 2], R[2, 2])
-            extent = hand_extent(hand_pos[f], hand_rot[f], height, forward, radius, length, near)
-            angle = dtype(v % n) * (dtype(two_pi) / dtype(n))
-            t = wp.where(v < n, extent[0], extent[1])
-            world = hand_rot[f] * vec3(radius * wp.cos(angle), radius * wp.sin(angle), t) + hand_pos[f]
+            extent = hand_extent(hand_pos[f], hand_rot[f], height, vec3(R[0, 2], R[1, 2], R[2, 2]), radius, length,
+                                 near)
+            rot = hand_rot[f]
+            pos = hand_pos[f]
+            shape = vec3(extent[0], extent[1], radius)
         else:
-            local = wp.cw_mul(corner(v), dtype(0.5) * cuboid_size[f, k - 1])
-            world = cuboid_rot[f, k - 1] * local + cuboid_pos[f, k - 1]
+            rot = cuboid_rot[f, k - 1]
+            pos = cuboid_pos[f, k - 1]
+            shape = dtype(0.5) * cuboid_size[f, k - 1]
         zero = dtype(0.0)
-        return wp.transpose(R) * (world - vec3(zero, zero, height))
+        to_camera = wp.transpose(R)
+        return to_camera * rot, to_camera * (pos - vec3(zero, zero, height)), shape
+
+    @wp.func
+    def camera_vertex(k: int, v: int, n: int, axes: mat33, origin: vec3, shape: vec3) -> vec3:
+        """Vertex v of primitive k (an n-prism; :func:`prism_frame`) in camera coordinates [m]."""
+        local = wp.cw_mul(corner(v), shape)
+        if k == 0:
+            angle = dtype(v % n) * (dtype(two_pi) / dtype(n))
+            local = vec3(shape[2] * wp.cos(angle), shape[2] * wp.sin(angle), wp.where(v < n, shape[0], shape[1]))
+        return axes * local + origin
 
     @wp.kernel(module="unique", module_options={"optimization_level": OPTIMIZATION_LEVEL})
     def _project(
@@ -105,16 +119,14 @@ def _kernels(dtype, max_sides: int):
         # Data out:
         pixel_out: wp.array3d(dtype=vec2),
     ):
-        f, k, v = wp.tid()
+        f, k = wp.tid()
         n = sides[k]
-        pixel = vec2()
-        if v < 2 * n:
-            R = camera_rotation(elevation_in[0])
-            x = camera_vertex(f, k, v, n, radius, length, near, hand_pos_in, hand_rot_in, cuboid_pos_in,
-                              cuboid_rot_in, cuboid_size_in, height_in[0], R)
+        axes, origin, shape = prism_frame(f, k, radius, length, near, hand_pos_in, hand_rot_in, cuboid_pos_in,
+                                          cuboid_rot_in, cuboid_size_in, height_in[0], camera_rotation(elevation_in[0]))
+        for v in range(2 * n):  # nothing carried from one vertex to the next: the adjoint replays each
+            x = camera_vertex(k, v, n, axes, origin, shape)
             z = wp.max(x[2], dtype(_MIN_DEPTH))
-            pixel = vec2(intrinsics[0] * x[0] / z + intrinsics[2], intrinsics[1] * x[1] / z + intrinsics[3])
-        pixel_out[f, k, v] = pixel
+            pixel_out[f, k, v] = vec2(intrinsics[0] * x[0] / z + intrinsics[2], intrinsics[1] * x[1] / z + intrinsics[3])
 
     @wp.func
     def outward(normal: vec3, anchor: vec3, centre: vec3) -> vec4:
@@ -146,12 +158,13 @@ def _kernels(dtype, max_sides: int):
         n = sides[k]
         h = height_in[0]
         R = camera_rotation(elevation_in[0])
+        axes, origin, shape = prism_frame(f, k, radius, length, near, hand_pos_in, hand_rot_in, cuboid_pos_in,
+                                          cuboid_rot_in, cuboid_size_in, h, R)
         x = vertices()
         centre = vec3()
         deepest = dtype(1.0e30)
         for v in range(2 * n):
-            p = camera_vertex(f, k, v, n, radius, length, near, hand_pos_in, hand_rot_in, cuboid_pos_in,
-                              cuboid_rot_in, cuboid_size_in, h, R)
+            p = camera_vertex(k, v, n, axes, origin, shape)
             x[v] = p
             centre += p
             deepest = wp.min(deepest, p[2])
@@ -192,7 +205,7 @@ def project(
     pixel_grad: wp.array | None = None,
     scene_grads: list | None = None,
 ) -> None:
-    """Projected vertices (F, P, V) [px] of every prism into ``pixel`` (zero beyond each one's 2 ``sides[k]``).
+    """Projected vertices (F, P, V) [px] of every prism into ``pixel`` (left as they are beyond each one's 2 ``sides[k]``).
 
     ``scene`` holds the arrays hand_pos (F,), hand_rot (F,), cuboid_pos, cuboid_rot, cuboid_size (F, C) and the
     camera's height [m] and elevation [rad] (1,); ``intrinsics`` is (fx, fy, cx, cy) [px]; ``radius``,
@@ -202,7 +215,7 @@ def project(
     kernel = _kernels(pixel.dtype._wp_scalar_type_, pixel.shape[2] // 2)[0]
     model = [sides, radius, length, near, intrinsics]
     adjoint = pixel_grad is not None
-    wp.launch(kernel, dim=pixel.shape, inputs=[*model, *scene], outputs=[pixel], device=pixel.device,
+    wp.launch(kernel, dim=pixel.shape[:2], inputs=[*model, *scene], outputs=[pixel], device=pixel.device,
               adj_inputs=[None, 0.0, 0.0, 0.0, intrinsics, *scene_grads] if adjoint else [],
               adj_outputs=[pixel_grad] if adjoint else [], adjoint=adjoint)
 
