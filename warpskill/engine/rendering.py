@@ -169,8 +169,7 @@ class _ProjectedPrisms(torch.autograd.Function):
                            work.vec4(*ctx.camera_vec), work.views["scene"], work.views["pixel"],
                            work.views["pixel_grad"], work.views["scene_grad"])
         grads = [grad.clone() if needed else None for grad, needed in zip(work.scene_grad, ctx.needs_input_grad[1:])]
-        _PRISM_POOL.give_back(work.key, work)
-        del ctx.work
+        _PRISM_POOL.give_back(work.key, work)  # ctx keeps it: a second backward pass (retain_graph) reads it again
         return None, *grads
 
 
