@@ -101,8 +101,8 @@ def _kernels(dtype):
         target_area = wp.max(t_hi[0] - t_lo[0], zero) * wp.max(t_hi[1] - t_lo[1], zero)
         iou = overlap / wp.max(area + target_area - overlap, dtype(EMPTY_MASS))
         centre = dtype(0.5) * (t_lo + t_hi)
-        if wp.isnan(centre[0]):  # an empty target's inverted box
-            centre = vec2()
+        centre = vec2(wp.where(wp.isnan(centre[0]), zero, centre[0]),  # an empty target's inverted box
+                      wp.where(wp.isnan(centre[1]), zero, centre[1]))
         span_u = wp.max(hi[0], t_hi[0]) - wp.min(lo[0], t_lo[0])
         span_v = wp.max(hi[1], t_hi[1]) - wp.min(lo[1], t_lo[1])
         offset = centroid - centre

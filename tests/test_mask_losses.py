@@ -14,7 +14,8 @@ from warpskill.optimizer.losses import MaskProfile, MaskTargets, _box, _diou, _h
 def case(device: str, dtype: torch.dtype) -> tuple[torch.Tensor, MaskTargets]:
     """Rendered masks (4, 3, 9, 11) and targets: channel 0 dIoU, 1 boxes, 2 dIoU; frame 3's channel 2 absent;
     an empty target (frame 1, channel 0), an empty rendering (frame 2, channel 2), an empty pair (frame 0,
-    channel 2). Rendered values stay away from 0.5, where the boxes jump."""
+    channel 2), a boxed target with a box along u only (frame 2, channel 1). Rendered values stay away from
+    0.5, where the boxes jump."""
     gen = torch.Generator().manual_seed(3)
     target = torch.zeros(4, 3, 9, 11, dtype=dtype)
     for n in range(4):
@@ -23,6 +24,8 @@ def case(device: str, dtype: torch.dtype) -> tuple[torch.Tensor, MaskTargets]:
             target[n, c, r : r + 4, s : s + 5] = 1.0
     target[1, 0] = 0.0
     target[0, 2] = 0.0
+    target[2, 1] = 0.0
+    target[2, 1, :, 5] = 0.3  # a faint column: a box in u, none in v (no row holds half a pixel)
     absent = torch.zeros(4, 3, dtype=torch.bool)
     absent[3, 2] = True
     rendered = torch.rand(4, 3, 9, 11, generator=gen, dtype=dtype)
@@ -54,6 +57,7 @@ def test_values_and_gradients_match_the_torch_reference(dtype, device):
     (loss, grad), (ref_loss, ref_grad) = results
     tol = 1e-12 if dtype == torch.float64 else 1e-5
     assert loss[0, 2] == 0.0 and loss[1, 0] == 0.0 and loss[2, 2] == 2.0  # empty target, empty rendering
+    assert torch.isfinite(loss).all() and torch.isfinite(grad).all()
     assert torch.allclose(loss, ref_loss, rtol=tol, atol=tol)
     assert float((grad - ref_grad).norm() / ref_grad.norm()) < tol * 10
 
