@@ -260,7 +260,6 @@ def dense_masks(pixels, planes, sides, K, image_size, sigma, cut=True):
 def projected_scene(s: dict, intrinsics: Intrinsics):
     """Projected vertices (F, P, 48, 2), camera-frame planes (F, P, 26, 4) and sides of a scene."""
     from warpskill.engine.projection import project, world_to_camera
-    from warpskill.engine.rendering import _camera_facing, _pad
 
     h, e = s["camera_height"], s["camera_elevation"]
     cams = [
@@ -271,6 +270,18 @@ def projected_scene(s: dict, intrinsics: Intrinsics):
     planes = _camera_facing(torch.cat([_pad(prism_planes(c), 26) for c in cams], dim=1))
     sides = [HAND_SEGMENTS] + [4] * s["cuboid_pos"].shape[1]
     return pixels.detach(), planes, sides
+
+
+def _camera_facing(planes: torch.Tensor) -> torch.Tensor:
+    """Move the faces that see the camera (d < 0) first; the others (zeroed) cannot hold a ray's entry."""
+    facing = planes[..., 3:] < 0
+    order = torch.argsort((~facing[..., 0]).to(torch.int8), dim=-1, stable=True)
+    return torch.gather(planes * facing, -2, order.unsqueeze(-1).expand_as(planes))
+
+
+def _pad(x: torch.Tensor, rows: int) -> torch.Tensor:
+    """Zero-pad dimension -2 of x to ``rows``."""
+    return torch.nn.functional.pad(x, (0, 0, 0, rows - x.shape[-2]))
 
 
 @pytest.fixture(scope="module")

@@ -1,9 +1,9 @@
 """Differentiable soft silhouettes of the hand and the cuboids (``docs/architecture.md``).
 
-Vertices and their projection are plain Torch, so autograd carries gradients to poses,
-sizes and the camera; the raster is a ``torch.autograd.Function`` over the Warp kernels of
-``warpskill.kernels.raster``, whose backward turns per-edge moments into gradients with
-respect to the projected vertices in closed form.
+Two ``torch.autograd.Function``s over Warp kernels: the prisms' vertices and their projection
+(``warpskill.kernels.prisms``), whose backward is Warp's adjoint, carrying gradients to poses, sizes and
+the camera; and the raster (``warpskill.kernels.raster``), whose backward turns per-edge moments into
+gradients with respect to the projected vertices in closed form.
 """
 
 from __future__ import annotations
@@ -14,17 +14,9 @@ import torch
 import warp as wp
 
 from warpskill.contract.camera import Intrinsics
-from warpskill.engine.primitives import (
-    HAND_SEGMENTS,
-    NEAR_PLANE,
-    cuboid_vertices,
-    hand_axis_extent,
-    hand_vertices,
-    prism_planes,
-)
-from warpskill.engine.projection import project, world_to_camera
+from warpskill.engine.primitives import HAND_LENGTH, HAND_PRISM_RADIUS, HAND_SEGMENTS, NEAR_PLANE
 from warpskill.engine.warp_bridge import WorkspacePool, as_warp, warp_scope
-from warpskill.kernels import raster
+from warpskill.kernels import prisms, raster
 
 _MAX_VERTICES = 2 * raster.MAX_SIDES
 _MAX_PLANES = raster.MAX_SIDES + 2
@@ -127,33 +119,96 @@ def _raster_inputs(
     visibility (F, P), prism sides (P,), intrinsics (fx, fy, cx, cy) and image size (H, W)."""
     dtype = hand_pos.dtype
     F, C = cuboid_pos.shape[:2]
-    cuboid_size = cuboid_size.to(dtype).expand(F, C, 3)
-
-    t0, t1, hand_visible = hand_axis_extent(hand_pos, hand_rot, camera_height, camera_elevation)
-    hand = world_to_camera(hand_vertices(hand_pos, hand_rot, extent=(t0, t1)), camera_height, camera_elevation)
-    cuboids = world_to_camera(
-        cuboid_vertices(cuboid_pos.to(dtype), cuboid_rot.to(dtype), cuboid_size), camera_height, camera_elevation
-    )
-    camera = [hand.unsqueeze(1), cuboids]  # (F, 1, 48, 3), (F, C, 8, 3)
-    visible = torch.cat([hand_visible.unsqueeze(1), (cuboids[..., 2] >= NEAR_PLANE).all(dim=-1)], dim=1)
-    pixels = torch.cat([_pad(project(v, intrinsics.K), _MAX_VERTICES) for v in camera], dim=1)
-    planes = _camera_facing(torch.cat([_pad(prism_planes(v.detach()), _MAX_PLANES) for v in camera], dim=1))
-    sides = torch.tensor([HAND_SEGMENTS] + [4] * C, dtype=torch.int32, device=hand_pos.device)
     K = intrinsics.K
     camera_vec = (float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]))
+    scene = (hand_pos, hand_rot, cuboid_pos.to(dtype), cuboid_rot.to(dtype), cuboid_size.to(dtype).expand(F, C, 3),
+             camera_height.to(dtype).reshape(1), camera_elevation.to(dtype).reshape(1))
+    pixels, planes, visible = _ProjectedPrisms.apply(camera_vec, *scene)
+    sides = torch.tensor([HAND_SEGMENTS] + [4] * C, dtype=torch.int32, device=hand_pos.device)
     return pixels, planes, visible, sides, camera_vec, tuple(intrinsics.image_size)
 
 
-def _camera_facing(planes: torch.Tensor) -> torch.Tensor:
-    """Move the faces that see the camera (d < 0) first; the others (zeroed) cannot hold a ray's entry."""
-    facing = planes[..., 3:] < 0
-    order = torch.argsort((~facing[..., 0]).to(torch.int8), dim=-1, stable=True)
-    return torch.gather(planes * facing, -2, order.unsqueeze(-1).expand_as(planes))
+class _ProjectedPrisms(torch.autograd.Function):
+    """The prisms of a scene as the raster reads them (:mod:`warpskill.kernels.prisms`): projected vertices
+    (F, P, V, 2) [px], differentiable, and, not differentiable, the face planes (F, P, 26, 4) in camera
+    coordinates, camera-facing first (the others zeroed), and visibility (F, P) bool.
+
+    Inputs: intrinsics (fx, fy, cx, cy) [px], then hand_pos (F, 3), hand_rot (F, 3, 3), cuboid_pos (F, C, 3),
+    cuboid_rot (F, C, 3, 3), cuboid_size (F, C, 3), camera_height (1,) and camera_elevation (1,), of one dtype.
+    The buffers come from a :class:`_PrismWorkspace` of the shape, held from forward to backward.
+    """
+
+    @staticmethod
+    def forward(ctx, camera_vec, *scene):
+        wp.init()  # no-op once Warp is up
+        F, C = scene[2].shape[:2]
+        device = scene[0].device
+        work = _PRISM_POOL.take((F, C, scene[0].dtype, device))
+        for buffer, tensor in zip(work.scene, scene):
+            buffer.copy_(tensor.detach())
+        model = (work.views["sides"], HAND_PRISM_RADIUS, HAND_LENGTH, NEAR_PLANE)
+        with warp_scope(device):
+            prisms.project(*model, work.vec4(*camera_vec), work.views["scene"], work.views["pixel"])
+            prisms.face_planes(*model, work.views["scene"], *work.views["planes"])
+        planes, visible = work.plane.clone(), work.visible != 0
+        ctx.mark_non_differentiable(planes, visible)
+        if any(ctx.needs_input_grad[1:]):
+            ctx.work, ctx.camera_vec = work, camera_vec
+        else:
+            _PRISM_POOL.give_back(work.key, work)
+        return work.pixel.clone(), planes, visible
+
+    @staticmethod
+    def backward(ctx, pixel_grad, _planes_grad, _visible_grad):
+        work = ctx.work
+        work.pixel_grad.copy_(pixel_grad)
+        for grad in work.scene_grad:
+            grad.zero_()
+        with warp_scope(work.pixel.device):
+            prisms.project(work.views["sides"], HAND_PRISM_RADIUS, HAND_LENGTH, NEAR_PLANE,
+                           work.vec4(*ctx.camera_vec), work.views["scene"], work.views["pixel"],
+                           work.views["pixel_grad"], work.views["scene_grad"])
+        grads = [grad.clone() if needed else None for grad, needed in zip(work.scene_grad, ctx.needs_input_grad[1:])]
+        _PRISM_POOL.give_back(work.key, work)  # ctx keeps it: a second backward pass (retain_graph) reads it again
+        return None, *grads
 
 
-def _pad(x: torch.Tensor, rows: int) -> torch.Tensor:
-    """Zero-pad dimension -2 of x to ``rows``."""
-    return torch.nn.functional.pad(x, (0, 0, 0, rows - x.shape[-2]))
+class _PrismWorkspace:
+    """The buffers of :class:`_ProjectedPrisms` for F frames and C cuboids of one dtype, allocated once, with
+    their Warp views (made once): the scene's tensors (``scene``, in the Function's input order) and their
+    gradients (``scene_grad``), the projected vertices ``pixel`` (F, P, V, 2) and their gradient, the face planes
+    ``plane`` (F, P, 26, 4) with their count (F, P) int32, ``visible`` (F, P) int32 and the prisms' sides (P,)."""
+
+    def __init__(self, key: tuple):
+        F, C, dtype, device = key
+        like = {"dtype": dtype, "device": device}
+        self.key = key
+        shapes = ((F, 3), (F, 3, 3), (F, C, 3), (F, C, 3, 3), (F, C, 3), (1,), (1,))
+        self.scene = [torch.zeros(shape, **like) for shape in shapes]
+        self.scene_grad = [torch.zeros(shape, **like) for shape in shapes]
+        self.pixel = torch.zeros(F, 1 + C, _MAX_VERTICES, 2, **like)
+        self.pixel_grad = torch.zeros_like(self.pixel)
+        self.plane = torch.zeros(F, 1 + C, _MAX_PLANES, 4, **like)
+        self.plane_count = torch.zeros(F, 1 + C, dtype=torch.int32, device=device)
+        self.visible = torch.zeros(F, 1 + C, dtype=torch.int32, device=device)
+        self.sides = torch.tensor([HAND_SEGMENTS] + [4] * C, dtype=torch.int32, device=device)
+        scalar = wp.dtype_from_torch(dtype)
+        vec2, vec3, vec4 = (wp.types.vector(n, scalar) for n in (2, 3, 4))
+        self.vec4 = vec4
+        mat33 = wp.types.matrix((3, 3), scalar)
+        types = (vec3, mat33, vec3, mat33, vec3, None, None)
+        with warp_scope(device):
+            self.views = {
+                "sides": as_warp(self.sides),
+                "scene": [as_warp(x, t) for x, t in zip(self.scene, types)],
+                "scene_grad": [as_warp(x, t) for x, t in zip(self.scene_grad, types)],
+                "pixel": as_warp(self.pixel, vec2),
+                "pixel_grad": as_warp(self.pixel_grad, vec2),
+                "planes": [as_warp(self.plane, vec4), as_warp(self.plane_count), as_warp(self.visible)],
+            }
+
+
+_PRISM_POOL = WorkspacePool(_PrismWorkspace)
 
 
 class _SoftSilhouettes(torch.autograd.Function):
@@ -161,7 +216,7 @@ class _SoftSilhouettes(torch.autograd.Function):
     only their profiles (row sums, column sums, overlaps) against target masks.
 
     Non-differentiable inputs: face planes (F, P, 26, 4) in camera coordinates, camera-facing
-    first (:func:`_camera_facing`), visibility (F, P) bool, prism sides (P,) int32,
+    first (:class:`_ProjectedPrisms`), visibility (F, P) bool, prism sides (P,) int32,
     intrinsics (fx, fy, cx, cy), image size (H, W), sigma [px], and the targets (T, P, H, W)
     with each frame's index into them (F,), or None for the masks.
 

@@ -6,9 +6,10 @@ their frames in one raster launch, grouped by what one call must share:
 
 - rollouts: the frame rate, substeps and number of static cuboids; shorter scenes are
   padded with still hand velocities at the end (their own frames are unaffected);
-- silhouettes: the intrinsics, working image size and number of static cuboids; each
-  scene's poses are moved rigidly into its own camera frame first, so one shared camera
-  renders them all and the gradients still reach every scene's camera height and elevation.
+- silhouettes: the intrinsics, working image size and number of static cuboids; in a group
+  of several, each scene's poses are moved rigidly into its own camera frame first, so one
+  shared camera renders them all and the gradients still reach every scene's camera height
+  and elevation (a group of one is drawn with its own camera).
 """
 
 from __future__ import annotations
@@ -90,19 +91,8 @@ def render_many(
             for scene, intr in zip(scenes, intrinsics)]
     out: list = [None] * len(scenes)
     for members in groups(keys):
-        moved = [in_camera_frame(scenes[i]) for i in members]
-        frames = [m[0].shape[0] for m in moved]
-        zero = scenes[members[0]].camera_height.new_zeros(())
-        poses = (
-            torch.cat([m[0] for m in moved]),
-            torch.cat([m[1] for m in moved]),
-            torch.cat([m[2] for m in moved]),
-            torch.cat([m[3] for m in moved]),
-            torch.cat([m[4][None].expand(n, -1, 3) for m, n in zip(moved, frames)]),
-            zero,
-            zero,
-            intrinsics[members[0]],
-        )
+        frames = [scenes[i].hand_pos.shape[0] for i in members]
+        poses = (*_group_poses([scenes[i] for i in members]), intrinsics[members[0]])
         if targets is not None and backend.profile is not None:
             stacked, frame_index = _stacked_targets([targets[i] for i in members])
             profiles = backend.profile(*poses, stacked, frame_index, sigma=sigma)
@@ -114,6 +104,27 @@ def render_many(
         for i, part in zip(members, parts):
             out[i] = part
     return out
+
+
+def _group_poses(scenes: Sequence[SceneTrajectories]) -> tuple[torch.Tensor, ...]:
+    """The raster's scene arguments for a group: hand_pos, hand_rot, cuboid_pos, cuboid_rot,
+    cuboid_size per frame (sum N_i, ...), camera height and elevation. One scene is drawn with
+    its own camera; several are each moved into their camera's frame (:func:`in_camera_frame`)
+    and drawn with a camera at height 0 and elevation 0."""
+    if len(scenes) == 1:
+        scene = scenes[0]
+        return (scene.hand_pos, scene.hand_rot, *scene_cuboids(scene), scene.camera_height, scene.camera_elevation)
+    moved = [in_camera_frame(scene) for scene in scenes]
+    zero = scenes[0].camera_height.new_zeros(())
+    return (
+        torch.cat([m[0] for m in moved]),
+        torch.cat([m[1] for m in moved]),
+        torch.cat([m[2] for m in moved]),
+        torch.cat([m[3] for m in moved]),
+        torch.cat([m[4][None].expand(len(m[0]), -1, 3) for m in moved]),
+        zero,
+        zero,
+    )
 
 
 def _stacked_targets(targets: Sequence[MaskTargets]) -> tuple[torch.Tensor, torch.Tensor]:

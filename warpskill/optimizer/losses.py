@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import torch
 
-_EMPTY_MASS = 1e-3  # [px]: a mask with less total mass than this counts as empty
+from warpskill.engine.mask_losses import EMPTY_MASS as _EMPTY_MASS  # [px]: a mask with less mass counts as empty
+from warpskill.engine.mask_losses import LossTargets, profile_losses
 
 
 class MaskTargets:
@@ -30,6 +33,21 @@ class MaskTargets:
                     mass[seen[:, c], c].median() if seen[:, c].any() else mass.new_ones(())
                     for c in range(mass.shape[1])
                 ])
+        self._loss_targets: dict[torch.dtype, LossTargets] = {}
+
+    def loss_targets(self, dtype: torch.dtype) -> LossTargets:
+        """What the loss kernels read of these targets, in ``dtype`` (made once per dtype)."""
+        if dtype not in self._loss_targets:
+            m = self.moments
+            C = m.mass.shape[-1]
+            i32 = {"dtype": torch.int32, "device": m.mass.device}
+            boxed = self.boxed.to(**i32) if self.boxed is not None else torch.zeros(C, **i32)
+            absent = self.absent.to(**i32) if self.absent is not None else torch.zeros(0, 0, **i32)
+            typical = self.typical_mass if self.absent is not None else torch.ones(C, device=m.mass.device)
+            self._loss_targets[dtype] = LossTargets(
+                boxed, typical.to(dtype), m.mass.to(dtype), m.centroid.to(dtype),
+                torch.cat([m.box_min, m.box_max], -1).to(dtype), absent)
+        return self._loss_targets[dtype]
 
 
 def diou_loss(rendered: torch.Tensor, target: torch.Tensor | MaskTargets) -> tuple[torch.Tensor, torch.Tensor]:
@@ -86,14 +104,12 @@ def box_loss(rendered: torch.Tensor, targets: MaskTargets) -> torch.Tensor:
 def masks_loss(rendered: torch.Tensor | MaskProfile, targets: MaskTargets) -> torch.Tensor:
     """Per mask (N, C): :func:`diou_loss`, :func:`box_loss` on the channels drawn from boxes
     (``targets.boxed``) and :func:`hidden_loss` where a part is known to be out of sight
-    (``targets.absent``), from the rendered masks' profile (given, or from one pass over them)."""
+    (``targets.absent``), from the rendered masks' profile (given, or from one pass over them),
+    in Warp kernels (:func:`warpskill.engine.mask_losses.profile_losses`; the functions here are
+    their reference)."""
     profile = rendered if isinstance(rendered, MaskProfile) else MaskProfile.of(rendered, targets)
-    per_mask = _diou(profile, targets)
-    if targets.boxed is not None and bool(targets.boxed.any()):
-        per_mask = torch.where(targets.boxed.to(per_mask.device), _box(profile, targets), per_mask)
-    if targets.absent is not None:
-        per_mask = torch.where(targets.absent, _hidden(profile, targets), per_mask)
-    return per_mask
+    rows = profile.rows
+    return profile_losses(rows, profile.cols, profile.overlap, targets.loss_targets(rows.dtype))
 
 
 class MaskProfile:
@@ -103,8 +119,12 @@ class MaskProfile:
     (:func:`warpskill.engine.rendering.silhouette_profiles`); :meth:`of` takes them from masks."""
 
     def __init__(self, rows: torch.Tensor, cols: torch.Tensor, overlap: torch.Tensor):
-        self.overlap = overlap
-        self.moments = _MaskMoments(rows, cols)
+        self.rows, self.cols, self.overlap = rows, cols, overlap
+
+    @cached_property
+    def moments(self) -> "_MaskMoments":
+        """The rendered masks' :class:`_MaskMoments` (made on first use)."""
+        return _MaskMoments(self.rows, self.cols)
 
     @classmethod
     def of(cls, rendered: torch.Tensor, targets: MaskTargets) -> "MaskProfile":
