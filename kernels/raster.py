@@ -18,8 +18,9 @@ p = (j + 0.5, i + 0.5):
 :func:`rasterize` writes v_k, or only what the mask losses read of it (the profiles: row
 sums, column sums and the overlap sum v_k t_k with a target mask), and keeps the layers of
 each pixel that two or more primitives cover: the bit mask of those primitives, their
-coverages c_k and their depths z_k. :func:`rasterize_backward` recomputes sd_k over a tile
-per primitive, reads the other layers kept at the pixel, turns dL/dv (given, or from the
+coverages c_k and their depths z_k, and each partial primitive's sd_k and its edge.
+:func:`rasterize_backward` reads sd_k over a tile per primitive and the other layers kept at
+the pixel, turns dL/dv (given, or from the
 profiles' gradients: dL/dv_ij = g_row_i + g_col_j + g_overlap t_ij) into dL/dsd_k and
 reduces, per hull edge e, the moments (sum g, sum g (p - a_e)) over the pixels whose
 distance edge is e (a_e the edge's first vertex), which give the gradients of the edge's two
@@ -243,9 +244,15 @@ def _layers(
     edges: _EDGE_SETS,
     p: wp.vec2,
     sigma: float,
+    i: int,
+    j: int,
+    distance_out: wp.array4d(dtype=float),
+    edge_out: wp.array4d(dtype=wp.int32),
 ) -> tuple[int, _LAYERS, _LAYERS, _EDGES]:
-    """At p: the bit mask of the primitives with nonzero coverage, their coverages, and the
-    signed distances and hull edges of the ``partial`` ones (the ``full`` ones have c = 1)."""
+    """At p = pixel (i, j): the bit mask of the primitives with nonzero coverage, their coverages,
+    and the signed distances and hull edges of the ``partial`` ones (the ``full`` ones have c = 1).
+    Each partial primitive's distance and edge at p also go to ``distance_out`` and ``edge_out``
+    (F, P, H, W), for the backward pass."""
     c = _LAYERS()
     sd = _LAYERS()
     edge = _EDGES()
@@ -260,6 +267,8 @@ def _layers(
             sd[k] = -1.0e30
         elif _inside(bound_in[f, k], p[0], p[1]):
             d, e = _signed_distance(line_in, f, k, edges[k], p, limit)
+            distance_out[f, k, i, j] = d
+            edge_out[f, k, i, j] = e
             if d <= limit:
                 covered = covered | (1 << k)
                 c[k] = 1.0
@@ -366,6 +375,8 @@ def _forward(
     covered_out: wp.array3d(dtype=int),
     coverage_out: wp.array4d(dtype=float),
     depth_out: wp.array4d(dtype=float),
+    distance_out: wp.array4d(dtype=float),
+    edge_out: wp.array4d(dtype=wp.int32),
     rows_out: wp.array3d(dtype=float),
     cols_out: wp.array3d(dtype=float),
     overlap_out: wp.array2d(dtype=float),
@@ -387,7 +398,8 @@ def _forward(
         row = _LAYERS()
         for j in range(x0, wp.min(x0 + TILE, W)):
             p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
-            covered, c, sd, edge = _layers(line_in, bound_in, f, partial, full, edges, p, sigma)
+            covered, c, sd, edge = _layers(line_in, bound_in, f, partial, full, edges, p, sigma, i, j, distance_out,
+                                           edge_out)
             v = c  # visible masks: at most one layer needs no depth test
             if covered & (covered - 1) != 0:
                 z = _depths(intrinsics, vert_in, hull_in, count_in, plane_count_in, plane_in, f, covered, sd, edge, p)
@@ -466,6 +478,8 @@ def _backward(
     covered_in: wp.array3d(dtype=int),
     coverage_in: wp.array4d(dtype=float),
     depth_in: wp.array4d(dtype=float),
+    distance_in: wp.array4d(dtype=float),
+    edge_in: wp.array4d(dtype=wp.int32),
     mask_grad_in: wp.array4d(dtype=float),
     target_frame_in: wp.array(dtype=int),
     target_in: wp.array4d(dtype=float),
@@ -480,7 +494,7 @@ def _backward(
     x0, y0 = tx * TILE, ty * TILE
     lo, hi = _tile_corners(x0, y0, H, W)
     limit = CUTOFF * sigma
-    partial, full, edges = _tile_classes(count_in, line_in, bound_in, f, lo, hi, limit)
+    partial, _full, _edges = _tile_classes(count_in, line_in, bound_in, f, lo, hi, limit)
     if (partial >> k) & 1 == 0:  # coverage is constant (0 or 1) over the tile
         return
     bit = 1 << k
@@ -495,8 +509,9 @@ def _backward(
         for j in range(x0, wp.min(x0 + TILE, W)):
             p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
             if _inside(bound, p[0], p[1]):
-                sdk, ek = _signed_distance(line_in, f, k, edges[k], p, limit)
+                sdk = distance_in[f, k, i, j]  # the forward pass's, where it drew k over this tile
                 if sdk <= limit and sdk >= -limit:
+                    ek = edge_in[f, k, i, j]
                     ck = 1.0 / (1.0 + wp.exp(sdk / sigma))
                     dc = _mask_grad(mask_grad_in, target_in, rows_grad_in, cols_grad_in, overlap_grad_in, t, f, k, i, j)
                     covered = covered_in[f, i, j]  # 0 where k is the only layer
@@ -571,6 +586,8 @@ def rasterize(
     covered: wp.array,
     coverage: wp.array,
     depth: wp.array,
+    distance: wp.array,
+    edge: wp.array,
     rows: wp.array,
     cols: wp.array,
     overlap: wp.array,
@@ -584,10 +601,12 @@ def rasterize(
     Also the layers the backward pass reads where two or more primitives cover a pixel: the
     bit mask of those primitives into the zero-initialised ``covered`` (F, H, W) (0
     elsewhere), their coverages into ``coverage`` (F, P, H, W) and their depths [m] into
-    ``depth`` (F, P, H, W)."""
+    ``depth`` (F, P, H, W); and where a primitive's soft band meets a tile, its signed distance
+    [px] and hull edge at each pixel of the tile within its bounds into ``distance`` (F, P, H, W)
+    float32 and ``edge`` (F, P, H, W) int32 (elsewhere left as they were)."""
     dim = (covered.shape[0], *_tiles(covered.shape[1], covered.shape[2]))
     inputs = [intrinsics, sigma, vertices, hull, count, line, bound, plane_count, plane, target_frame, target]
-    outputs = [mask, covered, coverage, depth, rows, cols, overlap]
+    outputs = [mask, covered, coverage, depth, distance, edge, rows, cols, overlap]
     wp.launch(_forward, dim=dim, inputs=inputs, outputs=outputs, device=covered.device)
 
 
@@ -601,6 +620,8 @@ def rasterize_backward(
     covered: wp.array,
     coverage: wp.array,
     depth: wp.array,
+    distance: wp.array,
+    edge: wp.array,
     mask_grad: wp.array,
     target_frame: wp.array,
     target: wp.array,
@@ -614,6 +635,6 @@ def rasterize_backward(
     (F, P, H, W), or where that is empty, comes from the gradients of the profiles (``rows_grad``
     (F, P, H), ``cols_grad`` (F, P, W), ``overlap_grad`` (F, P)) and ``target``."""
     dim = (coverage.shape[0], coverage.shape[1], *_tiles(coverage.shape[2], coverage.shape[3]))
-    inputs = [sigma, vertices, hull, count, line, bound, covered, coverage, depth, mask_grad, target_frame, target,
-              rows_grad, cols_grad, overlap_grad]
+    inputs = [sigma, vertices, hull, count, line, bound, covered, coverage, depth, distance, edge, mask_grad,
+              target_frame, target, rows_grad, cols_grad, overlap_grad]
     wp.launch(_backward, dim=dim, inputs=inputs, outputs=[vertex_grad], device=vertex_grad.device)

@@ -247,7 +247,7 @@ class _SoftSilhouettes(torch.autograd.Function):
         with warp_scope(device):
             raster.build_hulls(as_warp(sides), raster.CUTOFF * sigma, *work.views[:6])
             raster.rasterize(wp.vec4(*camera_vec), sigma, *work.views[1:8], *along.views(), as_warp(masks),
-                             *work.views[8:11], *(as_warp(x) for x in (rows, cols, overlap)))
+                             *work.views[8:13], *(as_warp(x) for x in (rows, cols, overlap)))
         if ctx.needs_input_grad[0]:
             ctx.work, ctx.along, ctx.sigma = work, along, sigma
             ctx.save_for_backward(pixels.detach())
@@ -270,8 +270,8 @@ class _SoftSilhouettes(torch.autograd.Function):
         work.vertex_grad.zero_()
         with warp_scope(pixels.device):
             mask_grad, rows_grad, cols_grad, overlap_grad = (as_warp(g) for g in grads)
-            raster.rasterize_backward(ctx.sigma, *work.views[1:6], *work.views[8:11], mask_grad, *along.views(),
-                                      rows_grad, cols_grad, overlap_grad, work.views[11])
+            raster.rasterize_backward(ctx.sigma, *work.views[1:6], *work.views[8:13], mask_grad, *along.views(),
+                                      rows_grad, cols_grad, overlap_grad, work.views[13])
         vertex_grad = work.vertex_grad.to(pixels.dtype, copy=True)
         _POOL.give_back(work.key, work)
         del ctx.work
@@ -288,8 +288,9 @@ class _Workspace:
     4) padded screen bounds (u0, v0, u1, v1) [px]; plane_count (F, P) int32 camera-facing
     planes; plane (F, P, 26, 4) face planes, camera-facing first; covered (F, H, W) int32 bit
     mask of the primitives where two or more cover a pixel (0 elsewhere), their coverages
-    coverage (F, P, H, W) and depths depth (F, P, H, W) [m]; vertex_grad (F, P, V, 2) the
-    backward pass's output.
+    coverage (F, P, H, W) and depths depth (F, P, H, W) [m]; the signed distances distance
+    (F, P, H, W) [px] and hull edges edge (F, P, H, W) int32 where a primitive's soft band meets
+    a tile; vertex_grad (F, P, V, 2) the backward pass's output.
 
     A call takes one from :data:`_POOL` and gives it back once its backward pass has run (at
     once without one).
@@ -310,10 +311,12 @@ class _Workspace:
         self.covered = torch.zeros(F, H, W, **i32)
         self.coverage = torch.zeros(F, P, H, W, **f32)
         self.depth = torch.zeros(F, P, H, W, **f32)
+        self.distance = torch.zeros(F, P, H, W, **f32)
+        self.edge = torch.zeros(F, P, H, W, **i32)
         self.vertex_grad = torch.zeros(F, P, V, 2, **f32)
         buffers = (self.visible, self.vertices, self.hull, self.count, self.line, self.bound, self.plane_count,
-                   self.plane, self.covered, self.coverage, self.depth, self.vertex_grad)
-        types = (None, wp.vec2, None, None, wp.vec3, wp.vec4, None, wp.vec4, None, None, None, wp.vec2)
+                   self.plane, self.covered, self.coverage, self.depth, self.distance, self.edge, self.vertex_grad)
+        types = (None, wp.vec2, None, None, wp.vec3, wp.vec4, None, wp.vec4, None, None, None, None, None, wp.vec2)
         with warp_scope(device):
             self.views = [as_warp(buffer, dtype) for buffer, dtype in zip(buffers, types)]
 
