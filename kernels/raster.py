@@ -4,8 +4,8 @@ Per frame f and primitive k (a convex prism projected to 2D vertices), :func:`bu
 finds the convex hull of the projected vertices (Jarvis march), its edge lines and screen
 bounds padded by the soft band. :func:`rasterize` cuts the image into TILE x TILE tiles; a
 tile thread sorts the primitives into out of reach, fully covered, or partial (keeping only
-the hull edges that can matter in the tile) and writes, per pixel centre
-p = (j + 0.5, i + 0.5):
+the hull edges that can matter in the tile), sorts the partial ones again per row of the tile,
+and writes, per pixel centre p = (j + 0.5, i + 0.5):
 
     sd_k = max over hull edges e of n_e . p - o_e       signed distance [px], n_e outward
     c_k  = sigmoid(-sd_k / sigma)                       exactly 0 (1) beyond +(-) CUTOFF sigma
@@ -213,6 +213,36 @@ def _tile_classes(
 
 
 @wp.func
+def _row_classes(
+    line_in: wp.array3d(dtype=wp.vec3), f: int, partial: int, edges: _EDGE_SETS, lo: wp.vec2, hi: wp.vec2, limit: float
+) -> tuple[int, int]:
+    """The tile's ``partial`` primitives split over a row of it whose pixel centres span [lo, hi]:
+    bit masks (partial, full) of those whose soft band meets the row and of those with coverage
+    exactly 1 all along it; the others are out of reach there. The tile's edge sets suffice: an
+    edge left out of one is below the signed distance or below -limit all over the tile."""
+    row_partial = int(0)
+    row_full = int(0)
+    rest = partial
+    while rest != 0:
+        k = _lowest(rest)
+        rest = rest & (rest - 1)
+        floor = float(-1.0e30)
+        top = float(-1.0e30)
+        kept = edges[k]
+        while kept != wp.uint32(0):
+            e = _lowest(kept)
+            kept = kept & (kept - wp.uint32(1))
+            r = _edge_range(line_in[f, k, e], lo, hi)
+            floor = wp.max(floor, r[0])
+            top = wp.max(top, r[1])
+        if top < -limit:
+            row_full = row_full | (1 << k)
+        elif floor <= limit:
+            row_partial = row_partial | (1 << k)
+    return row_partial, row_full
+
+
+@wp.func
 def _signed_distance(
     line_in: wp.array3d(dtype=wp.vec3), f: int, k: int, edges: wp.uint32, p: wp.vec2, limit: float
 ) -> tuple[float, int]:
@@ -396,10 +426,14 @@ def _forward(
     overlap = _LAYERS()
     for i in range(y0, wp.min(y0 + TILE, H)):
         row = _LAYERS()
+        row_partial, row_full = _row_classes(line_in, f, partial, edges, wp.vec2(lo[0], float(i) + 0.5),
+                                             wp.vec2(hi[0], float(i) + 0.5), CUTOFF * sigma)
+        if row_partial == 0 and row_full == 0 and full == 0:
+            continue
         for j in range(x0, wp.min(x0 + TILE, W)):
             p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
-            covered, c, sd, edge = _layers(line_in, bound_in, f, partial, full, edges, p, sigma, i, j, distance_out,
-                                           edge_out)
+            covered, c, sd, edge = _layers(line_in, bound_in, f, row_partial, full | row_full, edges, p, sigma, i, j,
+                                           distance_out, edge_out)
             v = c  # visible masks: at most one layer needs no depth test
             if covered & (covered - 1) != 0:
                 z = _depths(intrinsics, vert_in, hull_in, count_in, plane_count_in, plane_in, f, covered, sd, edge, p)
@@ -494,7 +528,7 @@ def _backward(
     x0, y0 = tx * TILE, ty * TILE
     lo, hi = _tile_corners(x0, y0, H, W)
     limit = CUTOFF * sigma
-    partial, _full, _edges = _tile_classes(count_in, line_in, bound_in, f, lo, hi, limit)
+    partial, _full, edges = _tile_classes(count_in, line_in, bound_in, f, lo, hi, limit)
     if (partial >> k) & 1 == 0:  # coverage is constant (0 or 1) over the tile
         return
     bit = 1 << k
@@ -506,6 +540,10 @@ def _backward(
     origin = wp.vec2(float(x0 + TILE // 2), float(y0 + TILE // 2))  # moments about the tile centre
     acc = _MOMENTS()
     for i in range(y0, wp.min(y0 + TILE, H)):
+        row_partial, _row_full = _row_classes(line_in, f, bit, edges, wp.vec2(lo[0], float(i) + 0.5),
+                                              wp.vec2(hi[0], float(i) + 0.5), limit)
+        if row_partial == 0:  # k's coverage is constant (0 or 1) along the row: the forward pass kept no distance
+            continue
         for j in range(x0, wp.min(x0 + TILE, W)):
             p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
             if _inside(bound, p[0], p[1]):
