@@ -127,8 +127,9 @@ class SceneInputs:
                     dim = sizes.setdefault(dim, size)
                 if dim != size:
                     raise ValueError(f"{name} must have shape {expected}, got {tuple(tensor.shape)}")
-            if not torch.isfinite(tensor).all():
-                raise ValueError(f"{name} contains NaN or infinite values")
+        if not torch.isfinite(torch.cat([tensor.reshape(-1) for tensor in self.tensors()])).all():
+            name = next(name for name, tensor in self.items() if not torch.isfinite(tensor).all())
+            raise ValueError(f"{name} contains NaN or infinite values")
         if not (self.object_size > 0).all():
             raise ValueError("object_size must be positive")
         if not (self.static_size > 0).all():

@@ -118,7 +118,8 @@ class _AdamRun:
         for b, value in zip(active, values):
             self.latest[b] = value
             if value < self.best_loss[b]:
-                self.best_loss[b], self.best_state[b] = value, copy_state(self.modules[b])
+                self.best_loss[b] = value
+                keep_state(self.modules[b], self.best_state[b])
             self.trail[b] = (self.trail[b] + [self.best_loss[b]])[-(self.config.converge_window + 1):]
             # Warm-up: Adam's first steps move every parameter by about lr, whatever its gradient,
             # which can push the hand out of a grasp that only just holds.
@@ -216,3 +217,11 @@ class Plateau:
 def copy_state(module: torch.nn.Module) -> dict[str, torch.Tensor]:
     """A detached copy of ``module``'s parameters and buffers."""
     return {k: v.detach().clone() for k, v in module.state_dict().items()}
+
+
+@torch.no_grad()
+def keep_state(module: torch.nn.Module, state: dict[str, torch.Tensor]) -> None:
+    """Overwrite ``state`` (a :func:`copy_state` of ``module``) with ``module``'s parameters and
+    buffers now, in one multi-tensor copy."""
+    live = module.state_dict(keep_vars=True)
+    torch._foreach_copy_([state[name] for name in live], list(live.values()))
