@@ -15,7 +15,7 @@ import warp as wp
 
 from warpskill.contract.camera import Intrinsics
 from warpskill.engine.primitives import HAND_LENGTH, HAND_PRISM_RADIUS, HAND_SEGMENTS, NEAR_PLANE
-from warpskill.engine.warp_bridge import WorkspacePool, as_warp, warp_scope
+from warpskill.engine.warp_bridge import WorkspacePool, as_warp, copy_into, warp_scope
 from warpskill.kernels import prisms, raster
 
 _MAX_VERTICES = 2 * raster.MAX_SIDES
@@ -144,8 +144,7 @@ class _ProjectedPrisms(torch.autograd.Function):
         F, C = scene[2].shape[:2]
         device = scene[0].device
         work = _PRISM_POOL.take((F, C, scene[0].dtype, device))
-        for buffer, tensor in zip(work.scene, scene):
-            buffer.copy_(tensor.detach())
+        copy_into(work.scene, scene)
         model = (work.views["sides"], HAND_PRISM_RADIUS, HAND_LENGTH, NEAR_PLANE)
         with warp_scope(device):
             prisms.project(*model, work.vec4(*camera_vec), work.views["scene"], work.views["pixel"])
@@ -162,8 +161,7 @@ class _ProjectedPrisms(torch.autograd.Function):
     def backward(ctx, pixel_grad, _planes_grad, _visible_grad):
         work = ctx.work
         work.pixel_grad.copy_(pixel_grad)
-        for grad in work.scene_grad:
-            grad.zero_()
+        torch._foreach_zero_(work.scene_grad)
         with warp_scope(work.pixel.device):
             prisms.project(work.views["sides"], HAND_PRISM_RADIUS, HAND_LENGTH, NEAR_PLANE,
                            work.vec4(*ctx.camera_vec), work.views["scene"], work.views["pixel"],

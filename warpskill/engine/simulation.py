@@ -17,7 +17,7 @@ import torch
 import warp as wp
 
 from warpskill.engine.records import Rollout, SceneInputs
-from warpskill.engine.warp_bridge import WorkspacePool, as_warp, warp_scope
+from warpskill.engine.warp_bridge import WorkspacePool, as_warp, copy_into, warp_scope
 from warpskill.kernels.integrator import Scratch, Trajectory, gather_frames, rollout
 
 __all__ = ["PhysicsConfig", "Rollout", "SceneInputs", "simulate", "substeps_per_frame"]
@@ -99,8 +99,7 @@ def _launch(config: PhysicsConfig, steps_per_frame: int, dt: float, inputs: Scen
     key = (num_scenes, num_steps, num_steps // steps_per_frame + 1, inputs.static_pos.shape[1], scalar,
            str(wp.device_from_torch(device)), requires_grad)
     work = _POOL.take(key)
-    for buffer, tensor in zip(work.inputs.tensors(), inputs.tensors()):
-        buffer.copy_(tensor.detach())
+    copy_into(work.inputs.tensors(), inputs.tensors())
     tape = wp.Tape()
     with warp_scope(device), tape if requires_grad else contextlib.nullcontext():
         work.scratch.clear()
@@ -133,9 +132,9 @@ class _Simulate(torch.autograd.Function):
     @staticmethod
     def backward(ctx, *grad_outputs: torch.Tensor):
         work = ctx.work
-        for seed, grad in zip(work.frame_grads, grad_outputs):
-            if grad is not None:
-                seed.copy_(grad)  # into the frames' own .grad buffers (zeroed by the last tape.zero())
+        seeded = [(seed, grad) for seed, grad in zip(work.frame_grads, grad_outputs) if grad is not None]
+        if seeded:  # into the frames' own .grad buffers (zeroed by the last tape.zero())
+            copy_into(*zip(*seeded))
         with warp_scope(ctx.device):
             ctx.tape.backward()
             input_grads = [grad.clone() if needed else None

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 
 import torch
 import warp as wp
@@ -34,6 +34,12 @@ def as_warp(tensor: torch.Tensor, dtype=None, requires_grad: bool = False) -> wp
         device = wp.device_from_torch(tensor.device)
         return wp.zeros(shape, dtype=dtype, device=device, requires_grad=requires_grad)
     return wp.from_torch(tensor.detach().contiguous(), dtype=dtype, requires_grad=requires_grad)
+
+
+@torch.no_grad()
+def copy_into(buffers: Sequence[torch.Tensor], tensors: Sequence[torch.Tensor]) -> None:
+    """Copy each of ``tensors`` into the buffer of the same shape (detached), in one multi-tensor op."""
+    torch._foreach_copy_(list(buffers), list(tensors))
 
 
 @contextlib.contextmanager
