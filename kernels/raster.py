@@ -66,6 +66,59 @@ _EDGE_SETS = wp.types.vector(length=MAX_PRIMITIVES, dtype=wp.uint32)  # hull edg
 _MOMENTS = wp.types.matrix(shape=(MAX_HULL, 3), dtype=wp.float32)  # (sum g, sum g p) per hull edge
 
 
+@wp.struct
+class Outlines:
+    """Per frame f and primitive k, the prisms as the raster draws them: ``visible`` (F, P) int32
+    (0: not drawn), projected ``vertices`` (F, P, V) [px], and what :func:`build_hulls` makes of
+    them: ``hull`` (F, P, MAX_HULL) int32 hull vertex indices, counter-clockwise, ``count`` (F, P)
+    int32 hull sizes (0: not drawn), edge ``line``s (F, P, MAX_HULL) (unit outward normal,
+    offset) and screen ``bound``s (F, P) (u0, v0, u1, v1) [px] padded by the soft band; and the
+    face planes (n, d) in camera coordinates, camera-facing first: ``plane`` (F, P, MAX_SIDES +
+    2) and ``plane_count`` (F, P) int32 of those facing the camera."""
+
+    visible: wp.array2d(dtype=int)
+    vertices: wp.array3d(dtype=wp.vec2)
+    hull: wp.array3d(dtype=int)
+    count: wp.array2d(dtype=int)
+    line: wp.array3d(dtype=wp.vec3)
+    bound: wp.array2d(dtype=wp.vec4)
+    plane_count: wp.array2d(dtype=int)
+    plane: wp.array3d(dtype=wp.vec4)
+
+
+@wp.struct
+class Layers:
+    """What :func:`rasterize` keeps for :func:`rasterize_backward`: where two or more primitives
+    cover a pixel, their bit mask ``covered`` (F, H, W) int32 (0 elsewhere: zero it before each
+    call), coverages ``coverage`` (F, P, H, W) and depths ``depth`` (F, P, H, W) [m]; where a
+    primitive's soft band meets a row of a tile, its signed ``distance`` (F, P, H, W) [px] and
+    hull ``edge`` (F, P, H, W) int32 at each pixel within its bounds."""
+
+    covered: wp.array3d(dtype=int)
+    coverage: wp.array4d(dtype=float)
+    depth: wp.array4d(dtype=float)
+    distance: wp.array4d(dtype=float)
+    edge: wp.array4d(dtype=wp.int32)
+
+
+@wp.struct
+class Targets:
+    """The target masks ``masks`` (T, P, H, W) and each rendered frame's index into them ``frame`` (F,)."""
+
+    frame: wp.array(dtype=int)
+    masks: wp.array4d(dtype=float)
+
+
+@wp.struct
+class Profiles:
+    """What the mask losses read of the visible masks v against the targets, or its gradient: row
+    sums ``rows`` (F, P, H), column sums ``cols`` (F, P, W) and overlaps sum_ij v t ``overlap`` (F, P)."""
+
+    rows: wp.array3d(dtype=float)
+    cols: wp.array3d(dtype=float)
+    overlap: wp.array2d(dtype=float)
+
+
 @wp.func
 def _cross(a: wp.vec2, b: wp.vec2) -> float:
     return a[0] * b[1] - a[1] * b[0]
@@ -100,37 +153,25 @@ def _hull_step(vert_in: wp.array3d(dtype=wp.vec2), f: int, k: int, n: int, cur: 
 
 
 @wp.kernel
-def _hulls(
-    # Model:
-    sides: wp.array(dtype=int),
-    pad: float,
-    # Data in:
-    visible_in: wp.array2d(dtype=int),
-    vert_in: wp.array3d(dtype=wp.vec2),
-    # Data out:
-    hull_out: wp.array3d(dtype=int),
-    count_out: wp.array2d(dtype=int),
-    line_out: wp.array3d(dtype=wp.vec3),
-    bound_out: wp.array2d(dtype=wp.vec4),
-):
+def _hulls(sides: wp.array(dtype=int), pad: float, o: Outlines):
     f, k = wp.tid()
-    count_out[f, k] = 0
-    bound_out[f, k] = _EMPTY_BOUND
-    if visible_in[f, k] == 0:
+    o.count[f, k] = 0
+    o.bound[f, k] = _EMPTY_BOUND
+    if o.visible[f, k] == 0:
         return
     n = 2 * sides[k]
 
     start = int(0)
     for q in range(1, n):
-        p, s = vert_in[f, k, q], vert_in[f, k, start]
+        p, s = o.vertices[f, k, q], o.vertices[f, k, start]
         if p[1] < s[1] or (p[1] == s[1] and p[0] < s[0]):
             start = q
     count = int(0)
     cur = start
     while count < MAX_HULL:
-        hull_out[f, k, count] = cur
+        o.hull[f, k, count] = cur
         count += 1
-        cur = _hull_step(vert_in, f, k, n, cur)
+        cur = _hull_step(o.vertices, f, k, n, cur)
         if cur < 0 or cur == start:
             break
     if count < 3:
@@ -140,20 +181,20 @@ def _hulls(
     hi = wp.vec2(-1.0e30, -1.0e30)
     miter = float(1.0)
     for e in range(count):
-        a = vert_in[f, k, hull_out[f, k, e]]
-        d = vert_in[f, k, hull_out[f, k, (e + 1) % count]] - a
+        a = o.vertices[f, k, o.hull[f, k, e]]
+        d = o.vertices[f, k, o.hull[f, k, (e + 1) % count]] - a
         normal = wp.vec2(d[1], -d[0]) / wp.max(wp.length(d), 1.0e-12)
-        line_out[f, k, e] = wp.vec3(normal[0], normal[1], wp.dot(normal, a))
+        o.line[f, k, e] = wp.vec3(normal[0], normal[1], wp.dot(normal, a))
         lo = wp.min(lo, a)
         hi = wp.max(hi, a)
     for e in range(count):
-        prev = line_out[f, k, (e + count - 1) % count]
-        line = line_out[f, k, e]
+        prev = o.line[f, k, (e + count - 1) % count]
+        line = o.line[f, k, e]
         cosine = prev[0] * line[0] + prev[1] * line[1]
         miter = wp.max(miter, wp.min(wp.sqrt(2.0 / wp.max(1.0 + cosine, 1.0e-6)), MITER_CAP))
     reach = pad * miter
-    bound_out[f, k] = wp.vec4(lo[0] - reach, lo[1] - reach, hi[0] + reach, hi[1] + reach)
-    count_out[f, k] = count
+    o.bound[f, k] = wp.vec4(lo[0] - reach, lo[1] - reach, hi[0] + reach, hi[1] + reach)
+    o.count[f, k] = count
 
 
 @wp.func
@@ -172,9 +213,7 @@ def _edge_range(line: wp.vec3, lo: wp.vec2, hi: wp.vec2) -> wp.vec2:
 
 @wp.func
 def _tile_classes(
-    count_in: wp.array2d(dtype=int),
-    line_in: wp.array3d(dtype=wp.vec3),
-    bound_in: wp.array2d(dtype=wp.vec4),
+    o: Outlines,
     f: int,
     lo: wp.vec2,
     hi: wp.vec2,
@@ -191,14 +230,14 @@ def _tile_classes(
     partial = int(0)
     full = int(0)
     edges = _EDGE_SETS()
-    for k in range(count_in.shape[1]):
-        b = bound_in[f, k]
-        count = count_in[f, k]
+    for k in range(o.count.shape[1]):
+        b = o.bound[f, k]
+        count = o.count[f, k]
         if count > 0 and b[2] >= lo[0] and b[0] <= hi[0] and b[3] >= lo[1] and b[1] <= hi[1]:
             floor = float(-1.0e30)
             top = float(-1.0e30)
             for e in range(count):
-                r = _edge_range(line_in[f, k, e], lo, hi)
+                r = _edge_range(o.line[f, k, e], lo, hi)
                 floor = wp.max(floor, r[0])
                 top = wp.max(top, r[1])
             if top < -limit:
@@ -206,7 +245,7 @@ def _tile_classes(
             elif floor <= limit:
                 keep = wp.max(floor, -limit)
                 for e in range(count):
-                    if _edge_range(line_in[f, k, e], lo, hi)[1] >= keep:
+                    if _edge_range(o.line[f, k, e], lo, hi)[1] >= keep:
                         edges[k] = edges[k] | (wp.uint32(1) << wp.uint32(e))
                 partial = partial | (1 << k)
     return partial, full, edges
@@ -214,7 +253,7 @@ def _tile_classes(
 
 @wp.func
 def _row_classes(
-    line_in: wp.array3d(dtype=wp.vec3), f: int, partial: int, edges: _EDGE_SETS, lo: wp.vec2, hi: wp.vec2, limit: float
+    o: Outlines, f: int, partial: int, edges: _EDGE_SETS, lo: wp.vec2, hi: wp.vec2, limit: float
 ) -> tuple[int, int]:
     """The tile's ``partial`` primitives split over a row of it whose pixel centres span [lo, hi]:
     bit masks (partial, full) of those whose soft band meets the row and of those with coverage
@@ -232,7 +271,7 @@ def _row_classes(
         while kept != wp.uint32(0):
             e = _lowest(kept)
             kept = kept & (kept - wp.uint32(1))
-            r = _edge_range(line_in[f, k, e], lo, hi)
+            r = _edge_range(o.line[f, k, e], lo, hi)
             floor = wp.max(floor, r[0])
             top = wp.max(top, r[1])
         if top < -limit:
@@ -244,7 +283,7 @@ def _row_classes(
 
 @wp.func
 def _signed_distance(
-    line_in: wp.array3d(dtype=wp.vec3), f: int, k: int, edges: wp.uint32, p: wp.vec2, limit: float
+    o: Outlines, f: int, k: int, edges: wp.uint32, p: wp.vec2, limit: float
 ) -> tuple[float, int]:
     """Signed distance [px] of p to hull k over a set of its edges, and the edge holding it;
     stops early once above ``limit``."""
@@ -254,7 +293,7 @@ def _signed_distance(
     while rest != wp.uint32(0):
         e = _lowest(rest)
         rest = rest & (rest - wp.uint32(1))
-        line = line_in[f, k, e]
+        line = o.line[f, k, e]
         d = line[0] * p[0] + line[1] * p[1] - line[2]
         if d > sd:
             sd = d
@@ -266,8 +305,7 @@ def _signed_distance(
 
 @wp.func
 def _layers(
-    line_in: wp.array3d(dtype=wp.vec3),
-    bound_in: wp.array2d(dtype=wp.vec4),
+    o: Outlines,
     f: int,
     partial: int,
     full: int,
@@ -276,13 +314,11 @@ def _layers(
     sigma: float,
     i: int,
     j: int,
-    distance_out: wp.array4d(dtype=float),
-    edge_out: wp.array4d(dtype=wp.int32),
+    kept: Layers,
 ) -> tuple[int, _LAYERS, _LAYERS, _EDGES]:
     """At p = pixel (i, j): the bit mask of the primitives with nonzero coverage, their coverages,
     and the signed distances and hull edges of the ``partial`` ones (the ``full`` ones have c = 1).
-    Each partial primitive's distance and edge at p also go to ``distance_out`` and ``edge_out``
-    (F, P, H, W), for the backward pass."""
+    Each partial primitive's distance and edge at p also go to ``kept`` for the backward pass."""
     c = _LAYERS()
     sd = _LAYERS()
     edge = _EDGES()
@@ -295,10 +331,10 @@ def _layers(
         if (full >> k) & 1:
             c[k] = 1.0
             sd[k] = -1.0e30
-        elif _inside(bound_in[f, k], p[0], p[1]):
-            d, e = _signed_distance(line_in, f, k, edges[k], p, limit)
-            distance_out[f, k, i, j] = d
-            edge_out[f, k, i, j] = e
+        elif _inside(o.bound[f, k], p[0], p[1]):
+            d, e = _signed_distance(o, f, k, edges[k], p, limit)
+            kept.distance[f, k, i, j] = d
+            kept.edge[f, k, i, j] = e
             if d <= limit:
                 covered = covered | (1 << k)
                 c[k] = 1.0
@@ -318,11 +354,7 @@ def _ray(intrinsics: wp.vec4, p: wp.vec2) -> wp.vec3:
 @wp.func
 def _depths(
     intrinsics: wp.vec4,
-    vert_in: wp.array3d(dtype=wp.vec2),
-    hull_in: wp.array3d(dtype=int),
-    count_in: wp.array2d(dtype=int),
-    plane_count_in: wp.array2d(dtype=int),
-    plane_in: wp.array3d(dtype=wp.vec4),
+    o: Outlines,
     f: int,
     bits: int,
     sd: _LAYERS,
@@ -343,14 +375,14 @@ def _depths(
         rest = rest & (rest - 1)
         q = p
         if sd[k] > 0.0:
-            count = count_in[f, k]
-            a = vert_in[f, k, hull_in[f, k, edge[k]]]
-            d = vert_in[f, k, hull_in[f, k, (edge[k] + 1) % count]] - a
+            count = o.count[f, k]
+            a = o.vertices[f, k, o.hull[f, k, edge[k]]]
+            d = o.vertices[f, k, o.hull[f, k, (edge[k] + 1) % count]] - a
             q = a + wp.clamp(wp.dot(p - a, d) / wp.max(wp.dot(d, d), 1.0e-12), 0.0, 1.0) * d
         ray = _ray(intrinsics, q)
         depth = float(-1.0e30)
-        for i in range(plane_count_in[f, k]):
-            plane = plane_in[f, k, i]
+        for i in range(o.plane_count[f, k]):
+            plane = o.plane[f, k, i]
             nr = plane[0] * ray[0] + plane[1] * ray[1] + plane[2] * ray[2]
             if nr < 0.0:
                 depth = wp.max(depth, plane[3] / nr)
@@ -390,88 +422,72 @@ def _forward(
     # Model:
     intrinsics: wp.vec4,
     sigma: float,
+    profiled: int,
     # Data in:
-    vert_in: wp.array3d(dtype=wp.vec2),
-    hull_in: wp.array3d(dtype=int),
-    count_in: wp.array2d(dtype=int),
-    line_in: wp.array3d(dtype=wp.vec3),
-    bound_in: wp.array2d(dtype=wp.vec4),
-    plane_count_in: wp.array2d(dtype=int),
-    plane_in: wp.array3d(dtype=wp.vec4),
-    target_frame_in: wp.array(dtype=int),
-    target_in: wp.array4d(dtype=float),
+    o: Outlines,
+    targets: Targets,
     # Data out:
     mask_out: wp.array4d(dtype=float),
-    covered_out: wp.array3d(dtype=int),
-    coverage_out: wp.array4d(dtype=float),
-    depth_out: wp.array4d(dtype=float),
-    distance_out: wp.array4d(dtype=float),
-    edge_out: wp.array4d(dtype=wp.int32),
-    rows_out: wp.array3d(dtype=float),
-    cols_out: wp.array3d(dtype=float),
-    overlap_out: wp.array2d(dtype=float),
+    kept: Layers,
+    out: Profiles,
 ):
     f, ty, tx = wp.tid()
-    H, W = covered_out.shape[1], covered_out.shape[2]
+    H, W = kept.covered.shape[1], kept.covered.shape[2]
     x0, y0 = tx * TILE, ty * TILE
     lo, hi = _tile_corners(x0, y0, H, W)
-    partial, full, edges = _tile_classes(count_in, line_in, bound_in, f, lo, hi, CUTOFF * sigma)
+    partial, full, edges = _tile_classes(o, f, lo, hi, CUTOFF * sigma)
     if partial == 0 and full == 0:
         return
-    masks = mask_out.shape[0] > 0  # else only the profiles against the targets
-    profiles = target_in.shape[0] > 0
     t = int(0)
-    if profiles:
-        t = target_frame_in[f]
+    if profiled:
+        t = targets.frame[f]
     overlap = _LAYERS()
     for i in range(y0, wp.min(y0 + TILE, H)):
         row = _LAYERS()
-        row_partial, row_full = _row_classes(line_in, f, partial, edges, wp.vec2(lo[0], float(i) + 0.5),
+        row_partial, row_full = _row_classes(o, f, partial, edges, wp.vec2(lo[0], float(i) + 0.5),
                                              wp.vec2(hi[0], float(i) + 0.5), CUTOFF * sigma)
         if row_partial == 0 and row_full == 0 and full == 0:
             continue
         for j in range(x0, wp.min(x0 + TILE, W)):
             p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
-            covered, c, sd, edge = _layers(line_in, bound_in, f, row_partial, full | row_full, edges, p, sigma, i, j,
-                                           distance_out, edge_out)
+            covered, c, sd, edge = _layers(o, f, row_partial, full | row_full, edges, p, sigma, i, j, kept)
             v = c  # visible masks: at most one layer needs no depth test
             if covered & (covered - 1) != 0:
-                z = _depths(intrinsics, vert_in, hull_in, count_in, plane_count_in, plane_in, f, covered, sd, edge, p)
-                covered_out[f, i, j] = covered
+                z = _depths(intrinsics, o, f, covered, sd, edge, p)
+                kept.covered[f, i, j] = covered
                 rest = covered
                 while rest != 0:
                     k = _lowest(rest)
                     rest = rest & (rest - 1)
                     v[k] = c[k] * _transmittance(c, z, covered, k, -1)
-                    coverage_out[f, k, i, j] = c[k]
-                    depth_out[f, k, i, j] = z[k]
+                    kept.coverage[f, k, i, j] = c[k]
+                    kept.depth[f, k, i, j] = z[k]
             rest = covered
             while rest != 0:
                 k = _lowest(rest)
                 rest = rest & (rest - 1)
-                if masks:
-                    mask_out[f, k, i, j] = v[k]
-                if profiles:
+                if profiled:
                     row[k] += v[k]
-                    wp.atomic_add(cols_out, f, k, j, v[k])
-                    overlap[k] += v[k] * target_in[t, k, i, j]
-        if profiles:
-            for k in range(count_in.shape[1]):
+                    wp.atomic_add(out.cols, f, k, j, v[k])
+                    overlap[k] += v[k] * targets.masks[t, k, i, j]
+                else:
+                    mask_out[f, k, i, j] = v[k]
+        if profiled:
+            for k in range(o.count.shape[1]):
                 if row[k] != 0.0:
-                    wp.atomic_add(rows_out, f, k, i, row[k])
-    if profiles:
-        for k in range(count_in.shape[1]):
+                    wp.atomic_add(out.rows, f, k, i, row[k])
+    if profiled:
+        for k in range(o.count.shape[1]):
             if overlap[k] != 0.0:
-                wp.atomic_add(overlap_out, f, k, overlap[k])
+                wp.atomic_add(out.overlap, f, k, overlap[k])
 
 
 @wp.func
 def _mask_grad(
+    profiled: int,
     mask_grad_in: wp.array4d(dtype=float),
-    target_in: wp.array4d(dtype=float),
-    rows_grad_in: wp.array3d(dtype=float),
-    cols_grad_in: wp.array3d(dtype=float),
-    overlap_grad_in: wp.array2d(dtype=float),
+    targets: Targets,
+    grads: Profiles,
     t: int,
     f: int,
     k: int,
@@ -480,9 +496,9 @@ def _mask_grad(
 ) -> float:
     """dL/dv of the visible mask of primitive k at pixel (i, j) of frame f: given per pixel, or
     from the gradients of the profiles (row sum i, column sum j, overlap with target frame t)."""
-    if mask_grad_in.shape[0] > 0:
+    if profiled == 0:
         return mask_grad_in[f, k, i, j]
-    return rows_grad_in[f, k, i] + cols_grad_in[f, k, j] + overlap_grad_in[f, k] * target_in[t, k, i, j]
+    return grads.rows[f, k, i] + grads.cols[f, k, j] + grads.overlap[f, k] * targets.masks[t, k, i, j]
 
 
 @wp.func
@@ -503,56 +519,46 @@ def _edge_vertex_grads(g: float, m: wp.vec2, e: wp.vec2) -> tuple[wp.vec2, wp.ve
 def _backward(
     # Model:
     sigma: float,
+    profiled: int,
     # Data in:
-    vert_in: wp.array3d(dtype=wp.vec2),
-    hull_in: wp.array3d(dtype=int),
-    count_in: wp.array2d(dtype=int),
-    line_in: wp.array3d(dtype=wp.vec3),
-    bound_in: wp.array2d(dtype=wp.vec4),
-    covered_in: wp.array3d(dtype=int),
-    coverage_in: wp.array4d(dtype=float),
-    depth_in: wp.array4d(dtype=float),
-    distance_in: wp.array4d(dtype=float),
-    edge_in: wp.array4d(dtype=wp.int32),
+    o: Outlines,
+    kept: Layers,
+    targets: Targets,
     mask_grad_in: wp.array4d(dtype=float),
-    target_frame_in: wp.array(dtype=int),
-    target_in: wp.array4d(dtype=float),
-    rows_grad_in: wp.array3d(dtype=float),
-    cols_grad_in: wp.array3d(dtype=float),
-    overlap_grad_in: wp.array2d(dtype=float),
+    grads: Profiles,
     # Data out:
     vertex_grad_out: wp.array3d(dtype=wp.vec2),
 ):
     f, k, ty, tx = wp.tid()
-    H, W = covered_in.shape[1], covered_in.shape[2]
+    H, W = kept.covered.shape[1], kept.covered.shape[2]
     x0, y0 = tx * TILE, ty * TILE
     lo, hi = _tile_corners(x0, y0, H, W)
     limit = CUTOFF * sigma
-    partial, _full, edges = _tile_classes(count_in, line_in, bound_in, f, lo, hi, limit)
+    partial, _full, edges = _tile_classes(o, f, lo, hi, limit)
     if (partial >> k) & 1 == 0:  # coverage is constant (0 or 1) over the tile
         return
     bit = 1 << k
     t = int(0)
-    if target_in.shape[0] > 0:
-        t = target_frame_in[f]
-    count = count_in[f, k]
-    bound = bound_in[f, k]
+    if profiled:
+        t = targets.frame[f]
+    count = o.count[f, k]
+    bound = o.bound[f, k]
     origin = wp.vec2(float(x0 + TILE // 2), float(y0 + TILE // 2))  # moments about the tile centre
     acc = _MOMENTS()
     for i in range(y0, wp.min(y0 + TILE, H)):
-        row_partial, _row_full = _row_classes(line_in, f, bit, edges, wp.vec2(lo[0], float(i) + 0.5),
+        row_partial, _row_full = _row_classes(o, f, bit, edges, wp.vec2(lo[0], float(i) + 0.5),
                                               wp.vec2(hi[0], float(i) + 0.5), limit)
         if row_partial == 0:  # k's coverage is constant (0 or 1) along the row: the forward pass kept no distance
             continue
         for j in range(x0, wp.min(x0 + TILE, W)):
             p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
             if _inside(bound, p[0], p[1]):
-                sdk = distance_in[f, k, i, j]  # the forward pass's, where it drew k over this tile
+                sdk = kept.distance[f, k, i, j]  # the forward pass's, where it drew k over this tile
                 if sdk <= limit and sdk >= -limit:
-                    ek = edge_in[f, k, i, j]
+                    ek = kept.edge[f, k, i, j]
                     ck = 1.0 / (1.0 + wp.exp(sdk / sigma))
-                    dc = _mask_grad(mask_grad_in, target_in, rows_grad_in, cols_grad_in, overlap_grad_in, t, f, k, i, j)
-                    covered = covered_in[f, i, j]  # 0 where k is the only layer
+                    dc = _mask_grad(profiled, mask_grad_in, targets, grads, t, f, k, i, j)
+                    covered = kept.covered[f, i, j]  # 0 where k is the only layer
                     others = covered - (covered & bit)
                     if others != 0:
                         c = _LAYERS()
@@ -561,17 +567,15 @@ def _backward(
                         while rest != 0:
                             m = _lowest(rest)
                             rest = rest & (rest - 1)
-                            c[m] = coverage_in[f, m, i, j]
-                            z[m] = depth_in[f, m, i, j]
+                            c[m] = kept.coverage[f, m, i, j]
+                            z[m] = kept.depth[f, m, i, j]
                         dc = dc * _transmittance(c, z, covered, k, -1)
                         rest = others
                         while rest != 0:
                             m = _lowest(rest)
                             rest = rest & (rest - 1)
                             if _in_front(z, k, m):
-                                g_m = _mask_grad(
-                                    mask_grad_in, target_in, rows_grad_in, cols_grad_in, overlap_grad_in, t, f, m, i, j
-                                )
+                                g_m = _mask_grad(profiled, mask_grad_in, targets, grads, t, f, m, i, j)
                                 dc = dc - g_m * c[m] * _transmittance(c, z, covered, m, k)
                     g = -dc * ck * (1.0 - ck) / sigma
                     acc[ek, 0] += g
@@ -579,12 +583,12 @@ def _backward(
                     acc[ek, 2] += g * (p[1] - origin[1])
     for e in range(count):
         if acc[e, 0] != 0.0:
-            ia = hull_in[f, k, e]
-            ib = hull_in[f, k, (e + 1) % count]
-            a = vert_in[f, k, ia]
+            ia = o.hull[f, k, e]
+            ib = o.hull[f, k, (e + 1) % count]
+            a = o.vertices[f, k, ia]
             shift = origin - a
             moment = wp.vec2(acc[e, 1] + acc[e, 0] * shift[0], acc[e, 2] + acc[e, 0] * shift[1])
-            grad_a, grad_b = _edge_vertex_grads(acc[e, 0], moment, vert_in[f, k, ib] - a)
+            grad_a, grad_b = _edge_vertex_grads(acc[e, 0], moment, o.vertices[f, k, ib] - a)
             wp.atomic_add(vertex_grad_out, f, k, ia, grad_a)
             wp.atomic_add(vertex_grad_out, f, k, ib, grad_b)
 
@@ -593,86 +597,47 @@ def _tiles(height: int, width: int) -> tuple[int, int]:
     return (height + TILE - 1) // TILE, (width + TILE - 1) // TILE
 
 
-def build_hulls(
-    sides: wp.array,
-    pad: float,
-    visible: wp.array,
-    vertices: wp.array,
-    hull: wp.array,
-    count: wp.array,
-    line: wp.array,
-    bound: wp.array,
-) -> None:
-    """Convex hulls (F, P, MAX_HULL), counts (F, P), edge lines and bounds padded by ``pad`` [px]."""
-    inputs = [sides, pad, visible, vertices]
-    wp.launch(_hulls, dim=count.shape, inputs=inputs, outputs=[hull, count, line, bound], device=count.device)
+def build_hulls(sides: wp.array, pad: float, outlines: Outlines) -> None:
+    """The hulls of ``outlines`` (its ``hull``, ``count``, ``line`` and ``bound``, bounds padded by
+    ``pad`` [px]) from its ``visible`` and ``vertices``; ``sides`` (P,) int32 each prism's sides."""
+    wp.launch(_hulls, dim=outlines.count.shape, inputs=[sides, pad, outlines], device=outlines.count.device)
 
 
 def rasterize(
-    intrinsics: wp.vec4,
-    sigma: float,
-    vertices: wp.array,
-    hull: wp.array,
-    count: wp.array,
-    line: wp.array,
-    bound: wp.array,
-    plane_count: wp.array,
-    plane: wp.array,
-    target_frame: wp.array,
-    target: wp.array,
-    mask: wp.array,
-    covered: wp.array,
-    coverage: wp.array,
-    depth: wp.array,
-    distance: wp.array,
-    edge: wp.array,
-    rows: wp.array,
-    cols: wp.array,
-    overlap: wp.array,
+    intrinsics: wp.vec4, sigma: float, outlines: Outlines, targets: Targets | None, masks: wp.array, kept: Layers,
+    profiles: Profiles,
 ) -> None:
-    """Visible soft masks v (F, P, H, W) into the zero-initialised ``mask``, or, where ``mask``
-    is empty (0, P, H, W), only their profiles against ``target`` (T, P, H, W), frame f read
-    against target frame ``target_frame[f]``: row sums into ``rows`` (F, P, H), column sums
-    into ``cols`` (F, P, W) and sum_ij v t into ``overlap`` (F, P), all zero-initialised (an
-    empty ``target`` skips them).
-
-    Also the layers the backward pass reads where two or more primitives cover a pixel: the
-    bit mask of those primitives into the zero-initialised ``covered`` (F, H, W) (0
-    elsewhere), their coverages into ``coverage`` (F, P, H, W) and their depths [m] into
-    ``depth`` (F, P, H, W); and where a primitive's soft band meets a tile, its signed distance
-    [px] and hull edge at each pixel of the tile within its bounds into ``distance`` (F, P, H, W)
-    float32 and ``edge`` (F, P, H, W) int32 (elsewhere left as they were)."""
+    """Draw ``outlines`` (hulls built) with edge softness ``sigma`` [px] through a camera of
+    ``intrinsics`` (fx, fy, cx, cy) [px]: without ``targets``, the visible soft masks v (F, P,
+    H, W) into the zero-initialised ``masks``; with them, only the profiles of v against them,
+    frame f read against target frame ``targets.frame[f]``, into the zero-initialised
+    ``profiles`` (``masks`` is then not touched). Either way what the backward pass reads goes
+    to ``kept`` (its ``covered`` zero-initialised)."""
+    covered = kept.covered
     dim = (covered.shape[0], *_tiles(covered.shape[1], covered.shape[2]))
-    inputs = [intrinsics, sigma, vertices, hull, count, line, bound, plane_count, plane, target_frame, target]
-    outputs = [mask, covered, coverage, depth, distance, edge, rows, cols, overlap]
-    wp.launch(_forward, dim=dim, inputs=inputs, outputs=outputs, device=covered.device)
+    profiled = int(targets is not None)
+    inputs = [intrinsics, sigma, profiled, outlines, targets if profiled else _no_targets(covered.device)]
+    wp.launch(_forward, dim=dim, inputs=inputs, outputs=[masks, kept, profiles], device=covered.device)
 
 
 def rasterize_backward(
-    sigma: float,
-    vertices: wp.array,
-    hull: wp.array,
-    count: wp.array,
-    line: wp.array,
-    bound: wp.array,
-    covered: wp.array,
-    coverage: wp.array,
-    depth: wp.array,
-    distance: wp.array,
-    edge: wp.array,
-    mask_grad: wp.array,
-    target_frame: wp.array,
-    target: wp.array,
-    rows_grad: wp.array,
-    cols_grad: wp.array,
-    overlap_grad: wp.array,
-    vertex_grad: wp.array,
+    sigma: float, outlines: Outlines, kept: Layers, targets: Targets | None, mask_grad: wp.array,
+    profile_grads: Profiles, vertex_grad: wp.array,
 ) -> None:
     """dL/d(projected vertices) (F, P, V) into the zero-initialised ``vertex_grad``, from the
-    hulls and the layers :func:`rasterize` kept. dL/dv is ``mask_grad``
-    (F, P, H, W), or where that is empty, comes from the gradients of the profiles (``rows_grad``
-    (F, P, H), ``cols_grad`` (F, P, W), ``overlap_grad`` (F, P)) and ``target``."""
+    outlines and the layers :func:`rasterize` kept. dL/dv is ``mask_grad`` (F, P, H, W) without
+    ``targets``, and with them comes from the gradients of the profiles ``profile_grads``."""
+    coverage = kept.coverage
     dim = (coverage.shape[0], coverage.shape[1], *_tiles(coverage.shape[2], coverage.shape[3]))
-    inputs = [sigma, vertices, hull, count, line, bound, covered, coverage, depth, distance, edge, mask_grad,
-              target_frame, target, rows_grad, cols_grad, overlap_grad]
+    profiled = int(targets is not None)
+    inputs = [sigma, profiled, outlines, kept, targets if profiled else _no_targets(coverage.device), mask_grad,
+              profile_grads]
     wp.launch(_backward, dim=dim, inputs=inputs, outputs=[vertex_grad], device=vertex_grad.device)
+
+
+def _no_targets(device) -> Targets:
+    """An empty :class:`Targets` (the kernels read none without targets)."""
+    empty = Targets()
+    empty.frame = wp.zeros(0, dtype=int, device=device)
+    empty.masks = wp.zeros((0, 0, 0, 0), dtype=float, device=device)
+    return empty

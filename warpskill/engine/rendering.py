@@ -213,7 +213,7 @@ class _SoftSilhouettes(torch.autograd.Function):
     """Visible soft masks (F, P, H, W) from projected prism vertices (F, P, V, 2) [px], or
     only their profiles (row sums, column sums, overlaps) against target masks.
 
-    Non-differentiable inputs: face planes (F, P, 26, 4) in camera coordinates, camera-facing
+    Non-differentiable inputs: face planes (F, P, HAND_SEGMENTS + 2, 4) in camera coordinates, camera-facing
     first (:class:`_ProjectedPrisms`), visibility (F, P) bool, prism sides (P,) int32,
     intrinsics (fx, fy, cx, cy), image size (H, W), sigma [px], and the targets (T, P, H, W)
     with each frame's index into them (F,), or None for the masks.
@@ -232,44 +232,38 @@ class _SoftSilhouettes(torch.autograd.Function):
         f32 = {"dtype": torch.float32, "device": device}
         work = _POOL.take((tuple(pixels.shape), tuple(planes.shape), tuple(image_size), device))
         work.load(pixels, planes, visible)
-        profiled = targets is not None
-        along = _Targets(
-            frame=target_frame.to(torch.int32).contiguous() if profiled else torch.zeros(0, dtype=torch.int32,
-                                                                                         device=device),
-            masks=targets.to(torch.float32).contiguous() if profiled else torch.zeros(0, P, *image_size, **f32),
-        )
-        made = F if profiled else 0
+        along = None if targets is None else _Targets(target_frame.to(torch.int32).contiguous(),
+                                                      targets.to(torch.float32).contiguous())
+        made = 0 if along is None else F
         masks = torch.zeros(F - made, P, *image_size, **f32)
-        rows, cols = (torch.zeros(made, P, n, **f32) for n in image_size)
-        overlap = torch.zeros(made, P, **f32)
+        profiles = _Profiles(*(torch.zeros(made, P, *size, **f32) for size in ((image_size[0],), (image_size[1],), ())))
         with warp_scope(device):
-            raster.build_hulls(as_warp(sides), raster.CUTOFF * sigma, *work.views[:6])
-            raster.rasterize(wp.vec4(*camera_vec), sigma, *work.views[1:8], *along.views(), as_warp(masks),
-                             *work.views[8:13], *(as_warp(x) for x in (rows, cols, overlap)))
+            raster.build_hulls(as_warp(sides), raster.CUTOFF * sigma, work.outlines)
+            raster.rasterize(wp.vec4(*camera_vec), sigma, work.outlines, along and along.struct(), as_warp(masks),
+                             work.kept, profiles.struct())
         if ctx.needs_input_grad[0]:
             ctx.work, ctx.along, ctx.sigma = work, along, sigma
             ctx.save_for_backward(pixels.detach())
         else:
             _POOL.give_back(work.key, work)
-        return masks, rows, cols, overlap
+        return masks, *profiles
 
     @staticmethod
     def backward(ctx, mask_grad, rows_grad, cols_grad, overlap_grad):
         (pixels,) = ctx.saved_tensors
         work, along = ctx.work, ctx.along
         F, P, H, W = work.coverage.shape
-        made = F if len(along.frame) > 0 else 0
+        made = 0 if along is None else F
 
         def seed(grad: torch.Tensor | None, *shape: int) -> torch.Tensor:
             return torch.zeros(shape, dtype=torch.float32, device=pixels.device) if grad is None else grad.float()
 
-        grads = (seed(mask_grad, F - made, P, H, W), seed(rows_grad, made, P, H), seed(cols_grad, made, P, W),
-                 seed(overlap_grad, made, P))
+        profile_grads = _Profiles(seed(rows_grad, made, P, H), seed(cols_grad, made, P, W), seed(overlap_grad, made, P))
         work.vertex_grad.zero_()
         with warp_scope(pixels.device):
-            mask_grad, rows_grad, cols_grad, overlap_grad = (as_warp(g) for g in grads)
-            raster.rasterize_backward(ctx.sigma, *work.views[1:6], *work.views[8:13], mask_grad, *along.views(),
-                                      rows_grad, cols_grad, overlap_grad, work.views[13])
+            raster.rasterize_backward(ctx.sigma, work.outlines, work.kept, along and along.struct(),
+                                      as_warp(seed(mask_grad, F - made, P, H, W)), profile_grads.struct(),
+                                      work.views["vertex_grad"])
         vertex_grad = work.vertex_grad.to(pixels.dtype, copy=True)
         _POOL.give_back(work.key, work)
         del ctx.work
@@ -278,17 +272,10 @@ class _SoftSilhouettes(torch.autograd.Function):
 
 class _Workspace:
     """The raster's buffers for one shape, allocated once and reused by every call of that shape,
-    with their Warp views (made once), in the kernels' argument order:
-
-    visible (F, P) int32; vertices (F, P, V, 2) float32 projected vertices [px]; hull (F, P,
-    MAX_HULL) int32 hull vertex indices, counter-clockwise; count (F, P) int32 hull sizes (0:
-    not drawn); line (F, P, MAX_HULL, 3) edge lines (unit outward normal, offset); bound (F, P,
-    4) padded screen bounds (u0, v0, u1, v1) [px]; plane_count (F, P) int32 camera-facing
-    planes; plane (F, P, 26, 4) face planes, camera-facing first; covered (F, H, W) int32 bit
-    mask of the primitives where two or more cover a pixel (0 elsewhere), their coverages
-    coverage (F, P, H, W) and depths depth (F, P, H, W) [m]; the signed distances distance
-    (F, P, H, W) [px] and hull edges edge (F, P, H, W) int32 where a primitive's soft band meets
-    a tile; vertex_grad (F, P, V, 2) the backward pass's output.
+    with the kernels' structs over them (made once): ``outlines`` (:class:`raster.Outlines`: the
+    visibility, projected vertices, hulls and face planes) and ``kept`` (:class:`raster.Layers`:
+    what the forward pass keeps for the backward one), and the backward pass's output
+    ``vertex_grad`` (F, P, V, 2).
 
     A call takes one from :data:`_POOL` and gives it back once its backward pass has run (at
     once without one).
@@ -300,23 +287,23 @@ class _Workspace:
         self.key = key
         self.visible = torch.zeros(F, P, **i32)
         self.vertices = torch.zeros(F, P, V, 2, **f32)
-        self.hull = torch.zeros(F, P, raster.MAX_HULL, **i32)
-        self.count = torch.zeros(F, P, **i32)
-        self.line = torch.zeros(F, P, raster.MAX_HULL, 3, **f32)
-        self.bound = torch.zeros(F, P, 4, **f32)
         self.plane_count = torch.zeros(F, P, **i32)
         self.plane = torch.zeros(plane_shape, **f32)
         self.covered = torch.zeros(F, H, W, **i32)
         self.coverage = torch.zeros(F, P, H, W, **f32)
-        self.depth = torch.zeros(F, P, H, W, **f32)
-        self.distance = torch.zeros(F, P, H, W, **f32)
-        self.edge = torch.zeros(F, P, H, W, **i32)
         self.vertex_grad = torch.zeros(F, P, V, 2, **f32)
-        buffers = (self.visible, self.vertices, self.hull, self.count, self.line, self.bound, self.plane_count,
-                   self.plane, self.covered, self.coverage, self.depth, self.distance, self.edge, self.vertex_grad)
-        types = (None, wp.vec2, None, None, wp.vec3, wp.vec4, None, wp.vec4, None, None, None, None, None, wp.vec2)
         with warp_scope(device):
-            self.views = [as_warp(buffer, dtype) for buffer, dtype in zip(buffers, types)]
+            self.outlines = _struct(
+                raster.Outlines, visible=as_warp(self.visible), vertices=as_warp(self.vertices, wp.vec2),
+                hull=as_warp(torch.zeros(F, P, raster.MAX_HULL, **i32)), count=as_warp(torch.zeros(F, P, **i32)),
+                line=as_warp(torch.zeros(F, P, raster.MAX_HULL, 3, **f32), wp.vec3),
+                bound=as_warp(torch.zeros(F, P, 4, **f32), wp.vec4), plane_count=as_warp(self.plane_count),
+                plane=as_warp(self.plane, wp.vec4))
+            self.kept = _struct(
+                raster.Layers, covered=as_warp(self.covered), coverage=as_warp(self.coverage),
+                depth=as_warp(torch.zeros(F, P, H, W, **f32)), distance=as_warp(torch.zeros(F, P, H, W, **f32)),
+                edge=as_warp(torch.zeros(F, P, H, W, **i32)))
+            self.views = {"vertex_grad": as_warp(self.vertex_grad, wp.vec2)}
 
     def load(self, pixels: torch.Tensor, planes: torch.Tensor, visible: torch.Tensor) -> None:
         """Copy a call's inputs in and clear what the kernels accumulate into (``covered``)."""
@@ -331,14 +318,34 @@ _POOL = WorkspacePool(_Workspace)
 
 
 class _Targets(NamedTuple):
-    """The masks the profiles are taken against (empty: none)."""
+    """The masks the profiles are taken against."""
 
     frame: torch.Tensor  # (F,) int32 each frame's index into ``masks``
     masks: torch.Tensor  # (T, P, H, W) float32 target masks
 
-    def views(self) -> list[wp.array]:
-        """Zero-copy Warp views."""
-        return [as_warp(x) for x in self]
+    def struct(self) -> raster.Targets:
+        """The kernels' :class:`raster.Targets`, over zero-copy Warp views."""
+        return _struct(raster.Targets, frame=as_warp(self.frame), masks=as_warp(self.masks))
+
+
+class _Profiles(NamedTuple):
+    """Row sums (F, P, H), column sums (F, P, W) and overlaps (F, P) of the masks, or their gradients."""
+
+    rows: torch.Tensor
+    cols: torch.Tensor
+    overlap: torch.Tensor
+
+    def struct(self) -> raster.Profiles:
+        """The kernels' :class:`raster.Profiles`, over zero-copy Warp views."""
+        return _struct(raster.Profiles, rows=as_warp(self.rows), cols=as_warp(self.cols), overlap=as_warp(self.overlap))
+
+
+def _struct(kind, **fields):
+    """An instance of the Warp struct ``kind`` with ``fields`` set."""
+    record = kind()
+    for name, value in fields.items():
+        setattr(record, name, value)
+    return record
 
 
 def check_silhouette_inputs(
