@@ -212,6 +212,12 @@ class Demonstration:
         """Time from the first to the last frame [s], (N - 1) / fps."""
         return (self.num_frames - 1) / self.fps
 
+    def mask_channels(self) -> np.ndarray:
+        """All masks at full size, (N, 2 + K, H, W) bool: channel 0 the hand, 1 the object, 2 + k
+        static object k (:meth:`mask_stack`'s channels, unresized and not converted to floats)."""
+        statics = self.static_mask.transpose(1, 0, 2, 3)
+        return np.concatenate([self.hand_mask[:, None], self.object_mask[:, None], statics], axis=1)
+
     def mask_stack(self, height: int, width: int) -> np.ndarray:
         """All masks area-averaged to ``height`` x ``width``: what the optimiser fits.
 

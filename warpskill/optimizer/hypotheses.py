@@ -121,7 +121,7 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
     held = held_after_contact(inputs.masks.cpu().numpy(), inputs.contact_signal)
     rest = cut = covering = enclosed = np.zeros(demo.num_frames, dtype=bool)
     if demo.num_static:
-        full = demo.mask_stack(*demo.image_size)
+        full = demo.mask_channels()
         rest, cut = rests_on_static(full, inputs.contact_signal), cut_by_static(full, inputs.contact_signal)
         covering = covers_static_top(full, inputs.contact_signal)
         enclosed = within_static_across(full, inputs.contact_signal)
