@@ -225,8 +225,8 @@ class Demonstration:
             (N, 2 + K, height, width) float32 in [0, 1]: channel 0 the hand, 1 the object,
             2 + k static object k; each value the covered fraction of the output pixel.
         """
-        stack = np.concatenate([self.hand_mask[None], self.object_mask[None], self.static_mask])
-        return _area_resize(stack, height, width).transpose(1, 0, 2, 3)
+        channels = [self.hand_mask, self.object_mask, *self.static_mask]
+        return np.stack([_area_resize(masks, height, width) for masks in channels], axis=1)
 
     def resized(self, height: int, width: int) -> "Demonstration":
         """The demonstration at ``height`` x ``width``: pixels at least half covered stay set.
