@@ -9,7 +9,7 @@ from warpskill.engine.simulation import simulate
 from warpskill.optimizer.batching import Backend, render_many, simulate_many
 from warpskill.optimizer.checkpoint import Checkpoint
 from warpskill.optimizer.config import OptimizeConfig
-from warpskill.optimizer.loop import minimise
+from warpskill.optimizer.loop import copy_state, keep_state, minimise
 from warpskill.optimizer.losses import MaskProfile, MaskTargets, masks_loss
 from warpskill.optimizer.pipeline import optimize, optimize_many
 from warpskill.optimizer.scene import SceneTrajectories, render_scene
@@ -214,3 +214,16 @@ def test_minimise_runs_the_coarse_objective_first_then_restarts_from_the_best():
                       progress=False, label="bowl", store=Checkpoint(None, ""), coarse=(5, objective("coarse", -10.0)))
     assert calls[:5] == ["coarse"] * 5 and calls[5:] == ["fine"] * 7
     assert best > 0.0  # the best loss is the fine objective's, not the coarse one's lower values
+
+
+def test_keep_state_overwrites_a_snapshot_that_shares_nothing_with_the_module():
+    module = torch.nn.Linear(3, 2)
+    snapshot = copy_state(module)
+    with torch.no_grad():
+        module.weight.add_(1.0)
+    keep_state(module, snapshot)
+    assert torch.equal(snapshot["weight"], module.weight) and torch.equal(snapshot["bias"], module.bias)
+    assert not snapshot["weight"].requires_grad
+    with torch.no_grad():
+        module.weight.mul_(2.0)
+    assert not torch.equal(snapshot["weight"], module.weight)  # a copy, not the parameter itself

@@ -310,3 +310,11 @@ def test_resized_keeps_bool_masks_and_rescales_intrinsics():
     np.testing.assert_allclose(small.intrinsics.K, demo.intrinsics.resized(3, 4).K)
     assert small.fps == demo.fps and small.action == demo.action
     np.testing.assert_array_equal(small.contact, demo.contact)
+
+
+
+def test_mask_channels_are_mask_stacks_channels_at_full_size_as_bools():
+    demo = from_file_arrays(valid_arrays())
+    channels = demo.mask_channels()
+    assert channels.dtype == bool and channels.shape == (N, 2 + 2, H, W)
+    np.testing.assert_array_equal(channels, demo.mask_stack(H, W) > 0.5)
