@@ -212,6 +212,23 @@ def _edge_range(line: wp.vec3, lo: wp.vec2, hi: wp.vec2) -> wp.vec2:
 
 
 @wp.func
+def _distance_bounds(o: Outlines, f: int, k: int, edges: wp.uint32, lo: wp.vec2, hi: wp.vec2) -> tuple[float, float]:
+    """Bounds of primitive k's signed distance over the rectangle [lo, hi] from its hull edges in
+    ``edges`` (bit e: edge e): the largest per-edge minimum (a lower bound) and the largest
+    per-edge maximum (an upper bound)."""
+    floor = float(-1.0e30)
+    top = float(-1.0e30)
+    rest = edges
+    while rest != wp.uint32(0):
+        e = _lowest(rest)
+        rest = rest & (rest - wp.uint32(1))
+        r = _edge_range(o.line[f, k, e], lo, hi)
+        floor = wp.max(floor, r[0])
+        top = wp.max(top, r[1])
+    return floor, top
+
+
+@wp.func
 def _tile_classes(
     o: Outlines,
     f: int,
@@ -234,12 +251,7 @@ def _tile_classes(
         b = o.bound[f, k]
         count = o.count[f, k]
         if count > 0 and b[2] >= lo[0] and b[0] <= hi[0] and b[3] >= lo[1] and b[1] <= hi[1]:
-            floor = float(-1.0e30)
-            top = float(-1.0e30)
-            for e in range(count):
-                r = _edge_range(o.line[f, k, e], lo, hi)
-                floor = wp.max(floor, r[0])
-                top = wp.max(top, r[1])
+            floor, top = _distance_bounds(o, f, k, wp.uint32(0xFFFFFFFF) >> wp.uint32(32 - count), lo, hi)
             if top < -limit:
                 full = full | (1 << k)
             elif floor <= limit:
@@ -265,15 +277,7 @@ def _row_classes(
     while rest != 0:
         k = _lowest(rest)
         rest = rest & (rest - 1)
-        floor = float(-1.0e30)
-        top = float(-1.0e30)
-        kept = edges[k]
-        while kept != wp.uint32(0):
-            e = _lowest(kept)
-            kept = kept & (kept - wp.uint32(1))
-            r = _edge_range(o.line[f, k, e], lo, hi)
-            floor = wp.max(floor, r[0])
-            top = wp.max(top, r[1])
+        floor, top = _distance_bounds(o, f, k, edges[k], lo, hi)
         if top < -limit:
             row_full = row_full | (1 << k)
         elif floor <= limit:
