@@ -239,8 +239,8 @@ class _SoftSilhouettes(torch.autograd.Function):
         profiles = _Profiles(*(torch.zeros(made, P, *size, **f32) for size in ((image_size[0],), (image_size[1],), ())))
         with warp_scope(device):
             raster.build_hulls(as_warp(sides), raster.CUTOFF * sigma, work.outlines)
-            raster.rasterize(wp.vec4(*camera_vec), sigma, work.outlines, along and along.struct(), as_warp(masks),
-                             work.kept, profiles.struct())
+            raster.rasterize(wp.vec4(*camera_vec), sigma, work.outlines, None if along is None else along.struct(),
+                             as_warp(masks), work.kept, profiles.struct())
         if ctx.needs_input_grad[0]:
             ctx.work, ctx.along, ctx.sigma = work, along, sigma
             ctx.save_for_backward(pixels.detach())
@@ -261,9 +261,9 @@ class _SoftSilhouettes(torch.autograd.Function):
         profile_grads = _Profiles(seed(rows_grad, made, P, H), seed(cols_grad, made, P, W), seed(overlap_grad, made, P))
         work.vertex_grad.zero_()
         with warp_scope(pixels.device):
-            raster.rasterize_backward(ctx.sigma, work.outlines, work.kept, along and along.struct(),
+            raster.rasterize_backward(ctx.sigma, work.outlines, work.kept, None if along is None else along.struct(),
                                       as_warp(seed(mask_grad, F - made, P, H, W)), profile_grads.struct(),
-                                      work.views["vertex_grad"])
+                                      work.vertex_grad_view)
         vertex_grad = work.vertex_grad.to(pixels.dtype, copy=True)
         _POOL.give_back(work.key, work)
         del ctx.work
@@ -303,7 +303,7 @@ class _Workspace:
                 raster.Layers, covered=as_warp(self.covered), coverage=as_warp(self.coverage),
                 depth=as_warp(torch.zeros(F, P, H, W, **f32)), distance=as_warp(torch.zeros(F, P, H, W, **f32)),
                 edge=as_warp(torch.zeros(F, P, H, W, **i32)))
-            self.views = {"vertex_grad": as_warp(self.vertex_grad, wp.vec2)}
+            self.vertex_grad_view = as_warp(self.vertex_grad, wp.vec2)
 
     def load(self, pixels: torch.Tensor, planes: torch.Tensor, visible: torch.Tensor) -> None:
         """Copy a call's inputs in and clear what the kernels accumulate into (``covered``)."""
