@@ -20,9 +20,8 @@ sums, column sums and the overlap sum v_k t_k with a target mask), and keeps the
 each pixel that two or more primitives cover: the bit mask of those primitives, their
 coverages c_k and their depths z_k, and each partial primitive's sd_k and its edge.
 :func:`rasterize_backward` reads sd_k over a tile per primitive and the other layers kept at
-the pixel, turns dL/dv (given, or from the
-profiles' gradients: dL/dv_ij = g_row_i + g_col_j + g_overlap t_ij) into dL/dsd_k and
-reduces, per hull edge e, the moments (sum g, sum g (p - a_e)) over the pixels whose
+the pixel, turns dL/dv (given, or from the profiles' gradients: dL/dv_ij = g_row_i + g_col_j
++ g_overlap t_ij) into dL/dsd_k and reduces, per hull edge e, the moments (sum g, sum g (p - a_e)) over the pixels whose
 distance edge is e (a_e the edge's first vertex), which give the gradients of the edge's two
 vertices in closed form, added atomically per (tile, primitive, edge). Depth order carries
 no gradient. All kernels are forward-only.

@@ -312,7 +312,6 @@ def test_resized_keeps_bool_masks_and_rescales_intrinsics():
     np.testing.assert_array_equal(small.contact, demo.contact)
 
 
-
 def test_mask_channels_are_mask_stacks_channels_at_full_size_as_bools():
     demo = from_file_arrays(valid_arrays())
     channels = demo.mask_channels()

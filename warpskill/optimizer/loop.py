@@ -8,6 +8,7 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
+from warpskill.engine.warp_bridge import copy_into
 from warpskill.optimizer.checkpoint import Checkpoint
 from warpskill.optimizer.config import OptimizeConfig
 
@@ -219,9 +220,8 @@ def copy_state(module: torch.nn.Module) -> dict[str, torch.Tensor]:
     return {k: v.detach().clone() for k, v in module.state_dict().items()}
 
 
-@torch.no_grad()
 def keep_state(module: torch.nn.Module, state: dict[str, torch.Tensor]) -> None:
     """Overwrite ``state`` (a :func:`copy_state` of ``module``) with ``module``'s parameters and
     buffers now, in one multi-tensor copy."""
     live = module.state_dict(keep_vars=True)
-    torch._foreach_copy_([state[name] for name in live], list(live.values()))
+    copy_into([state[name] for name in live], list(live.values()))
