@@ -18,12 +18,14 @@ and writes, per pixel centre p = (j + 0.5, i + 0.5):
 :func:`rasterize` writes v_k, or only what the mask losses read of it (the profiles: row
 sums, column sums and the overlap sum v_k t_k with a target mask), and keeps the layers of
 each pixel that two or more primitives cover: the bit mask of those primitives, their
-coverages c_k and their depths z_k, and each partial primitive's sd_k and its edge.
-:func:`rasterize_backward` reads sd_k over a tile per primitive and the other layers kept at
-the pixel, turns dL/dv (given, or from the profiles' gradients: dL/dv_ij = g_row_i + g_col_j
-+ g_overlap t_ij) into dL/dsd_k and reduces, per hull edge e, the moments (sum g, sum g (p - a_e)) over the pixels whose
-distance edge is e (a_e the edge's first vertex), which give the gradients of the edge's two
-vertices in closed form, added atomically per (tile, primitive, edge). Depth order carries
+coverages c_k and their depths z_k; and where a primitive's soft band is (|sd_k| <= CUTOFF
+sigma), which primitives are partial in each tile, the band's pixels per row as a bit mask,
+and at them sd_k and its edge. :func:`rasterize_backward` visits, per tile and primitive, only
+those band pixels, reads sd_k there and the other layers kept at the pixel, turns dL/dv
+(given, or from the profiles' gradients: dL/dv_ij = g_row_i + g_col_j + g_overlap t_ij) into
+dL/dsd_k and reduces, per hull edge e, the moments (sum g, sum g (p - a_e)) over the pixels
+whose distance edge is e (a_e the edge's first vertex), which give the gradients of the edge's
+two vertices in closed form, added atomically per (tile, primitive, edge). Depth order carries
 no gradient. All kernels are forward-only.
 """
 
@@ -89,13 +91,18 @@ class Outlines:
 class Layers:
     """What :func:`rasterize` keeps for :func:`rasterize_backward`: where two or more primitives
     cover a pixel, their bit mask ``covered`` (F, H, W) int32 (0 elsewhere: zero it before each
-    call), coverages ``coverage`` (F, P, H, W) and depths ``depth`` (F, P, H, W) [m]; where a
-    primitive's soft band meets a row of a tile, its signed ``distance`` (F, P, H, W) [px] and
-    hull ``edge`` (F, P, H, W) int32 at each pixel within its bounds."""
+    call), coverages ``coverage`` (F, P, H, W) and depths ``depth`` (F, P, H, W) [m]; per tile,
+    the bit mask ``tiles`` (F, H / TILE, W / TILE) int32 of the primitives partial there; per
+    row of a tile and primitive partial in the tile, the bit mask ``band`` (F, P, H, W / TILE)
+    int32 of its pixels (bit j - x0) in the soft band, and at those pixels its signed
+    ``distance`` (F, P, H, W) [px] and hull ``edge`` (F, P, H, W) int32. Every call writes the
+    masks it reads back, so the buffers need no clearing but ``covered``."""
 
     covered: wp.array3d(dtype=int)
     coverage: wp.array4d(dtype=float)
     depth: wp.array4d(dtype=float)
+    tiles: wp.array3d(dtype=int)
+    band: wp.array4d(dtype=int)
     distance: wp.array4d(dtype=float)
     edge: wp.array4d(dtype=wp.int32)
 
@@ -318,14 +325,16 @@ def _layers(
     i: int,
     j: int,
     kept: Layers,
-) -> tuple[int, _LAYERS, _LAYERS, _EDGES]:
-    """At p = pixel (i, j): the bit mask of the primitives with nonzero coverage, their coverages,
-    and the signed distances and hull edges of the ``partial`` ones (the ``full`` ones have c = 1).
-    Each partial primitive's distance and edge at p also go to ``kept`` for the backward pass."""
+) -> tuple[int, int, _LAYERS, _LAYERS, _EDGES]:
+    """At p = pixel (i, j): the bit masks of the primitives with nonzero coverage and of the
+    ``partial`` ones in their soft band there, the coverages, and the signed distances and hull
+    edges of the partial ones (the ``full`` ones have c = 1). A primitive's distance and edge at a
+    pixel of its soft band also go to ``kept`` for the backward pass."""
     c = _LAYERS()
     sd = _LAYERS()
     edge = _EDGES()
     covered = full
+    band = int(0)
     limit = CUTOFF * sigma
     rest = partial | full
     while rest != 0:
@@ -336,16 +345,17 @@ def _layers(
             sd[k] = -1.0e30
         elif _inside(o.bound[f, k], p[0], p[1]):
             d, e = _signed_distance(o, f, k, edges[k], p, limit)
-            kept.distance[f, k, i, j] = d
-            kept.edge[f, k, i, j] = e
             if d <= limit:
                 covered = covered | (1 << k)
                 c[k] = 1.0
                 if d >= -limit:
                     c[k] = 1.0 / (1.0 + wp.exp(d / sigma))
+                    band = band | (1 << k)
+                    kept.distance[f, k, i, j] = d
+                    kept.edge[f, k, i, j] = e
                 sd[k] = d
                 edge[k] = e
-    return covered, c, sd, edge
+    return covered, band, c, sd, edge
 
 
 @wp.func
@@ -420,6 +430,16 @@ def _tile_corners(x0: int, y0: int, H: int, W: int) -> tuple[wp.vec2, wp.vec2]:
     return lo, hi
 
 
+@wp.func
+def _keep_bands(kept: Layers, f: int, i: int, tx: int, partial: int, bands: _EDGES):
+    """Keep the soft-band masks of row i of tile column tx for the tile's ``partial`` primitives."""
+    rest = partial
+    while rest != 0:
+        k = _lowest(rest)
+        rest = rest & (rest - 1)
+        kept.band[f, k, i, tx] = bands[k]
+
+
 @wp.kernel
 def _forward(
     # Model:
@@ -439,6 +459,7 @@ def _forward(
     x0, y0 = tx * TILE, ty * TILE
     lo, hi = _tile_corners(x0, y0, H, W)
     partial, full, edges = _tile_classes(o, f, lo, hi, CUTOFF * sigma)
+    kept.tiles[f, ty, tx] = partial
     if partial == 0 and full == 0:
         return
     t = int(0)
@@ -447,13 +468,20 @@ def _forward(
     overlap = _LAYERS()
     for i in range(y0, wp.min(y0 + TILE, H)):
         row = _LAYERS()
+        bands = _EDGES()
         row_partial, row_full = _row_classes(o, f, partial, edges, wp.vec2(lo[0], float(i) + 0.5),
                                              wp.vec2(hi[0], float(i) + 0.5), CUTOFF * sigma)
         if row_partial == 0 and row_full == 0 and full == 0:
+            _keep_bands(kept, f, i, tx, partial, bands)
             continue
         for j in range(x0, wp.min(x0 + TILE, W)):
             p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
-            covered, c, sd, edge = _layers(o, f, row_partial, full | row_full, edges, p, sigma, i, j, kept)
+            covered, band, c, sd, edge = _layers(o, f, row_partial, full | row_full, edges, p, sigma, i, j, kept)
+            rest = band
+            while rest != 0:
+                k = _lowest(rest)
+                rest = rest & (rest - 1)
+                bands[k] = bands[k] | (1 << (j - x0))
             v = c  # visible masks: at most one layer needs no depth test
             if covered & (covered - 1) != 0:
                 z = _depths(intrinsics, o, f, covered, sd, edge, p)
@@ -475,6 +503,7 @@ def _forward(
                     overlap[k] += v[k] * targets.masks[t, k, i, j]
                 else:
                     mask_out[f, k, i, j] = v[k]
+        _keep_bands(kept, f, i, tx, partial, bands)
         if profiled:
             for k in range(o.count.shape[1]):
                 if row[k] != 0.0:
@@ -533,57 +562,50 @@ def _backward(
     vertex_grad_out: wp.array3d(dtype=wp.vec2),
 ):
     f, k, ty, tx = wp.tid()
-    H, W = kept.covered.shape[1], kept.covered.shape[2]
-    x0, y0 = tx * TILE, ty * TILE
-    lo, hi = _tile_corners(x0, y0, H, W)
-    limit = CUTOFF * sigma
-    partial, _full, edges = _tile_classes(o, f, lo, hi, limit)
-    if (partial >> k) & 1 == 0:  # coverage is constant (0 or 1) over the tile
+    if (kept.tiles[f, ty, tx] >> k) & 1 == 0:  # coverage is constant (0 or 1) over the tile
         return
+    H = kept.covered.shape[1]
+    x0, y0 = tx * TILE, ty * TILE
     bit = 1 << k
     t = int(0)
     if profiled:
         t = targets.frame[f]
     count = o.count[f, k]
-    bound = o.bound[f, k]
     origin = wp.vec2(float(x0 + TILE // 2), float(y0 + TILE // 2))  # moments about the tile centre
     acc = _MOMENTS()
     for i in range(y0, wp.min(y0 + TILE, H)):
-        row_partial, _row_full = _row_classes(o, f, bit, edges, wp.vec2(lo[0], float(i) + 0.5),
-                                              wp.vec2(hi[0], float(i) + 0.5), limit)
-        if row_partial == 0:  # k's coverage is constant (0 or 1) along the row: the forward pass kept no distance
-            continue
-        for j in range(x0, wp.min(x0 + TILE, W)):
+        band = kept.band[f, k, i, tx]  # where the forward pass drew k's soft band in this row
+        while band != 0:
+            j = x0 + _lowest(band)
+            band = band & (band - 1)
             p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
-            if _inside(bound, p[0], p[1]):
-                sdk = kept.distance[f, k, i, j]  # the forward pass's, where it drew k over this tile
-                if sdk <= limit and sdk >= -limit:
-                    ek = kept.edge[f, k, i, j]
-                    ck = 1.0 / (1.0 + wp.exp(sdk / sigma))
-                    dc = _mask_grad(profiled, mask_grad_in, targets, grads, t, f, k, i, j)
-                    covered = kept.covered[f, i, j]  # 0 where k is the only layer
-                    others = covered - (covered & bit)
-                    if others != 0:
-                        c = _LAYERS()
-                        z = _LAYERS()
-                        rest = covered
-                        while rest != 0:
-                            m = _lowest(rest)
-                            rest = rest & (rest - 1)
-                            c[m] = kept.coverage[f, m, i, j]
-                            z[m] = kept.depth[f, m, i, j]
-                        dc = dc * _transmittance(c, z, covered, k, -1)
-                        rest = others
-                        while rest != 0:
-                            m = _lowest(rest)
-                            rest = rest & (rest - 1)
-                            if _in_front(z, k, m):
-                                g_m = _mask_grad(profiled, mask_grad_in, targets, grads, t, f, m, i, j)
-                                dc = dc - g_m * c[m] * _transmittance(c, z, covered, m, k)
-                    g = -dc * ck * (1.0 - ck) / sigma
-                    acc[ek, 0] += g
-                    acc[ek, 1] += g * (p[0] - origin[0])
-                    acc[ek, 2] += g * (p[1] - origin[1])
+            sdk = kept.distance[f, k, i, j]
+            ek = kept.edge[f, k, i, j]
+            ck = 1.0 / (1.0 + wp.exp(sdk / sigma))
+            dc = _mask_grad(profiled, mask_grad_in, targets, grads, t, f, k, i, j)
+            covered = kept.covered[f, i, j]  # 0 where k is the only layer
+            others = covered - (covered & bit)
+            if others != 0:
+                c = _LAYERS()
+                z = _LAYERS()
+                rest = covered
+                while rest != 0:
+                    m = _lowest(rest)
+                    rest = rest & (rest - 1)
+                    c[m] = kept.coverage[f, m, i, j]
+                    z[m] = kept.depth[f, m, i, j]
+                dc = dc * _transmittance(c, z, covered, k, -1)
+                rest = others
+                while rest != 0:
+                    m = _lowest(rest)
+                    rest = rest & (rest - 1)
+                    if _in_front(z, k, m):
+                        g_m = _mask_grad(profiled, mask_grad_in, targets, grads, t, f, m, i, j)
+                        dc = dc - g_m * c[m] * _transmittance(c, z, covered, m, k)
+            g = -dc * ck * (1.0 - ck) / sigma
+            acc[ek, 0] += g
+            acc[ek, 1] += g * (p[0] - origin[0])
+            acc[ek, 2] += g * (p[1] - origin[1])
     for e in range(count):
         if acc[e, 0] != 0.0:
             ia = o.hull[f, k, e]

@@ -299,9 +299,11 @@ class _Workspace:
                 line=as_warp(torch.zeros(F, P, raster.MAX_HULL, 3, **f32), wp.vec3),
                 bound=as_warp(torch.zeros(F, P, 4, **f32), wp.vec4), plane_count=as_warp(self.plane_count),
                 plane=as_warp(self.plane, wp.vec4))
+            rows, cols = (H + raster.TILE - 1) // raster.TILE, (W + raster.TILE - 1) // raster.TILE
             self.kept = _struct(
                 raster.Layers, covered=as_warp(self.covered), coverage=as_warp(self.coverage),
-                depth=as_warp(torch.zeros(F, P, H, W, **f32)), distance=as_warp(torch.zeros(F, P, H, W, **f32)),
+                depth=as_warp(torch.zeros(F, P, H, W, **f32)), tiles=as_warp(torch.zeros(F, rows, cols, **i32)),
+                band=as_warp(torch.zeros(F, P, H, cols, **i32)), distance=as_warp(torch.zeros(F, P, H, W, **f32)),
                 edge=as_warp(torch.zeros(F, P, H, W, **i32)))
             self.vertex_grad_view = as_warp(self.vertex_grad, wp.vec2)
 
