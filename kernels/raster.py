@@ -94,12 +94,13 @@ class Outlines:
 class Layers:
     """What :func:`rasterize` keeps for :func:`rasterize_backward`: where two or more primitives
     cover a pixel, their bit mask ``covered`` (F, H, W) int32 (0 elsewhere: zero it before each
-    call), coverages ``coverage`` (F, P, H, W) and depths ``depth`` (F, P, H, W) [m]; per tile,
-    the bit mask ``tiles`` (F, H / TILE, W / TILE) int32 of the primitives partial there; per
-    row of a tile and primitive partial in the tile, the bit mask ``band`` (F, P, H, W / TILE)
-    int32 of its pixels (bit j - x0) in the soft band, and at those pixels its signed
-    ``distance`` (F, P, H, W) [px] and hull ``edge`` (F, P, H, W) int32. Every call writes the
-    masks it reads back, so the buffers need no clearing but ``covered``."""
+    call), coverages ``coverage`` (F, P, H, W) and depths ``depth`` (F, P, H, W) [m] (as far as
+    their order needs, :func:`_depths`); per tile, the bit mask ``tiles`` (F, H / TILE, W / TILE)
+    int32 of the primitives partial there; per row of a tile and primitive partial in the tile,
+    the bit mask ``band`` (F, P, H, W / TILE) int32 of its pixels (bit j - x0) in the soft band,
+    and at those pixels its signed ``distance`` (F, P, H, W) [px] and hull ``edge`` (F, P, H, W)
+    int32. Every call writes the masks it reads back, so the buffers need no clearing but
+    ``covered``."""
 
     covered: wp.array3d(dtype=int)
     coverage: wp.array4d(dtype=float)
@@ -323,6 +324,32 @@ def _ray(intrinsics: wp.vec4, p: wp.vec2) -> wp.vec3:
 
 
 @wp.func
+def _depth(intrinsics: wp.vec4, o: Outlines, f: int, k: int, sd: _LAYERS, edge: _EDGES, p: wp.vec2,
+           behind: float) -> float:
+    """Depth [m] at p of primitive k: the entry depth of the ray through p (the max over faces
+    with n . r < 0 of d / n . r, camera-facing faces only); outside its hull (sd > 0, the soft
+    band), that of the ray through the nearest hull point, so that depth stays continuous where
+    coverage is nonzero: a ray that misses a prism has no meaningful entry depth. Stops at the
+    first partial max above ``behind``."""
+    q = p
+    if sd[k] > 0.0:
+        count = o.count[f, k]
+        a = o.vertices[f, k, o.hull[f, k, edge[k]]]
+        d = o.vertices[f, k, o.hull[f, k, (edge[k] + 1) % count]] - a
+        q = a + wp.clamp(wp.dot(p - a, d) / wp.max(wp.dot(d, d), 1.0e-12), 0.0, 1.0) * d
+    ray = _ray(intrinsics, q)
+    depth = float(-1.0e30)
+    for i in range(o.plane_count[f, k]):
+        plane = o.plane[f, k, i]
+        nr = plane[0] * ray[0] + plane[1] * ray[1] + plane[2] * ray[2]
+        if nr < 0.0:
+            depth = wp.max(depth, plane[3] / nr)
+            if depth > behind:
+                break
+    return depth
+
+
+@wp.func
 def _depths(
     intrinsics: wp.vec4,
     o: Outlines,
@@ -332,32 +359,20 @@ def _depths(
     edge: _EDGES,
     p: wp.vec2,
 ) -> _LAYERS:
-    """Depths [m] at p of the primitives in ``bits``.
-
-    The entry depth of the ray through p (the max over faces with n . r < 0 of d / n . r,
-    camera-facing faces only); outside a hull (sd > 0, the soft band), that of the ray
-    through the nearest hull point, so that depth stays continuous where coverage is
-    nonzero: a ray that misses a prism has no meaningful entry depth.
-    """
+    """Depths [m] at p of the primitives in ``bits`` (:func:`_depth`), as far as their order
+    needs: primitive 0 (the hand, the prism of most faces) comes last, and where it is behind
+    every other layer its depth is a partial max already beyond theirs (it is behind the object
+    at most pixels where they meet)."""
     z = _LAYERS()
-    rest = bits
+    behind = float(-1.0e30)
+    rest = bits & ~1
     while rest != 0:
         k = _lowest(rest)
         rest = rest & (rest - 1)
-        q = p
-        if sd[k] > 0.0:
-            count = o.count[f, k]
-            a = o.vertices[f, k, o.hull[f, k, edge[k]]]
-            d = o.vertices[f, k, o.hull[f, k, (edge[k] + 1) % count]] - a
-            q = a + wp.clamp(wp.dot(p - a, d) / wp.max(wp.dot(d, d), 1.0e-12), 0.0, 1.0) * d
-        ray = _ray(intrinsics, q)
-        depth = float(-1.0e30)
-        for i in range(o.plane_count[f, k]):
-            plane = o.plane[f, k, i]
-            nr = plane[0] * ray[0] + plane[1] * ray[1] + plane[2] * ray[2]
-            if nr < 0.0:
-                depth = wp.max(depth, plane[3] / nr)
-        z[k] = depth
+        z[k] = _depth(intrinsics, o, f, k, sd, edge, p, 1.0e30)
+        behind = wp.max(behind, z[k])
+    if bits & 1:
+        z[0] = _depth(intrinsics, o, f, 0, sd, edge, p, behind)
     return z
 
 
