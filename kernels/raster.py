@@ -20,13 +20,13 @@ sums, column sums and the overlap sum v_k t_k with a target mask), and keeps the
 each pixel that two or more primitives cover: the bit mask of those primitives, their
 coverages c_k and their depths z_k; and where a primitive's soft band is (|sd_k| <= CUTOFF
 sigma), which primitives are partial in each tile, the band's pixels per row as a bit mask,
-and at them sd_k and its edge. :func:`rasterize_backward` visits, per tile and primitive, only
-those band pixels, reads sd_k there and the other layers kept at the pixel, turns dL/dv
-(given, or from the profiles' gradients: dL/dv_ij = g_row_i + g_col_j + g_overlap t_ij) into
-dL/dsd_k and reduces, per hull edge e, the moments (sum g, sum g (p - a_e)) over the pixels
-whose distance edge is e (a_e the edge's first vertex), which give the gradients of the edge's
-two vertices in closed form, added atomically per (tile, primitive, edge). Depth order carries
-no gradient. All kernels are forward-only.
+and at them c_k and the edge of sd_k. :func:`rasterize_backward` visits, per tile and
+primitive, only those band pixels, reads c_k there and the other layers kept at the pixel,
+turns dL/dv (given, or from the profiles' gradients: dL/dv_ij = g_row_i + g_col_j + g_overlap
+t_ij) into dL/dsd_k and reduces, per hull edge e, the moments (sum g, sum g (p - a_e)) over the
+pixels whose distance edge is e (a_e the edge's first vertex), which give the gradients of the
+edge's two vertices in closed form, added atomically per (tile, primitive, edge). Depth order
+carries no gradient. All kernels are forward-only.
 """
 
 from __future__ import annotations
@@ -98,8 +98,8 @@ class Layers:
     their order needs, :func:`_depths`); per tile, the bit mask ``tiles`` (F, H / TILE, W / TILE)
     int32 of the primitives partial there; per row of a tile and primitive partial in the tile,
     the bit mask ``band`` (F, P, H, W / TILE) int32 of its pixels (bit j - x0) in the soft band,
-    and at those pixels its signed ``distance`` (F, P, H, W) [px] and hull ``edge`` (F, P, H, W)
-    int32. Every call writes the masks it reads back, so the buffers need no clearing but
+    and at those pixels its coverage ``band_coverage`` (F, P, H, W) and the hull ``edge`` (F, P,
+    H, W) int32 its signed distance is measured to. Every call writes the masks it reads back, so the buffers need no clearing but
     ``covered``."""
 
     covered: wp.array3d(dtype=int)
@@ -107,7 +107,7 @@ class Layers:
     depth: wp.array4d(dtype=float)
     tiles: wp.array3d(dtype=int)
     band: wp.array4d(dtype=int)
-    distance: wp.array4d(dtype=float)
+    band_coverage: wp.array4d(dtype=float)
     edge: wp.array4d(dtype=wp.int32)
 
 
@@ -471,7 +471,7 @@ def _forward(
                         if d >= -limit:
                             ck = 1.0 / (1.0 + wp.exp(d / sigma))
                             bands[k] = bands[k] | (1 << b)
-                            kept.distance[f, k, i, j] = d
+                            kept.band_coverage[f, k, i, j] = ck
                             kept.edge[f, k, i, j] = e
                         coverage[k, b] = ck
                         distance[k, b] = d
@@ -605,9 +605,8 @@ def _backward(
             j = x0 + _lowest(band)
             band = band & (band - 1)
             p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
-            sdk = kept.distance[f, k, i, j]
             ek = kept.edge[f, k, i, j]
-            ck = 1.0 / (1.0 + wp.exp(sdk / sigma))
+            ck = kept.band_coverage[f, k, i, j]
             dc = _mask_grad(profiled, mask_grad_in, targets, grads, t, f, k, i, j)
             covered = kept.covered[f, i, j]  # 0 where k is the only layer
             others = covered - (covered & bit)

@@ -303,8 +303,8 @@ class _Workspace:
             self.kept = _struct(
                 raster.Layers, covered=as_warp(self.covered), coverage=as_warp(self.coverage),
                 depth=as_warp(torch.zeros(F, P, H, W, **f32)), tiles=as_warp(torch.zeros(F, rows, cols, **i32)),
-                band=as_warp(torch.zeros(F, P, H, cols, **i32)), distance=as_warp(torch.zeros(F, P, H, W, **f32)),
-                edge=as_warp(torch.zeros(F, P, H, W, **i32)))
+                band=as_warp(torch.zeros(F, P, H, cols, **i32)),
+                band_coverage=as_warp(torch.zeros(F, P, H, W, **f32)), edge=as_warp(torch.zeros(F, P, H, W, **i32)))
             self.vertex_grad_view = as_warp(self.vertex_grad, wp.vec2)
 
     def load(self, pixels: torch.Tensor, planes: torch.Tensor, visible: torch.Tensor) -> None:
