@@ -227,43 +227,32 @@ class _SoftSilhouettes(torch.autograd.Function):
     def forward(ctx, pixels, planes, visible, sides, camera_vec, image_size, sigma, targets, target_frame):
         wp.init()  # no-op once Warp is up
         ctx.set_materialize_grads(False)  # a profile the loss does not read seeds nothing
-        F, P = pixels.shape[:2]
         device = pixels.device
-        f32 = {"dtype": torch.float32, "device": device}
-        work = _POOL.take((tuple(pixels.shape), tuple(planes.shape), tuple(image_size), device))
+        work = _POOL.take((tuple(pixels.shape), tuple(planes.shape), tuple(image_size), device, targets is not None))
         work.load(pixels, planes, visible)
-        along = None if targets is None else _Targets(target_frame.to(torch.int32).contiguous(),
-                                                      targets.to(torch.float32).contiguous())
-        made = 0 if along is None else F
-        masks = torch.zeros(F - made, P, *image_size, **f32)
-        profiles = _Profiles(*(torch.zeros(made, P, *size, **f32) for size in ((image_size[0],), (image_size[1],), ())))
+        along = None if targets is None else work.targets(targets, target_frame)
+        torch._foreach_zero_([work.masks, *work.profiles])
         with warp_scope(device):
             raster.build_hulls(as_warp(sides), raster.CUTOFF * sigma, work.outlines)
-            raster.rasterize(wp.vec4(*camera_vec), sigma, work.outlines, None if along is None else along.struct(),
-                             as_warp(masks), work.kept, profiles.struct())
+            raster.rasterize(wp.vec4(*camera_vec), sigma, work.outlines, along, work.views["masks"], work.kept,
+                             work.views["profiles"])
         if ctx.needs_input_grad[0]:
             ctx.work, ctx.along, ctx.sigma = work, along, sigma
             ctx.save_for_backward(pixels.detach())
         else:
             _POOL.give_back(work.key, work)
-        return masks, *profiles
+        return work.masks.clone(), *(profile.clone() for profile in work.profiles)
 
     @staticmethod
     def backward(ctx, mask_grad, rows_grad, cols_grad, overlap_grad):
         (pixels,) = ctx.saved_tensors
-        work, along = ctx.work, ctx.along
-        F, P, H, W = work.coverage.shape
-        made = 0 if along is None else F
-
-        def seed(grad: torch.Tensor | None, *shape: int) -> torch.Tensor:
-            return torch.zeros(shape, dtype=torch.float32, device=pixels.device) if grad is None else grad.float()
-
-        profile_grads = _Profiles(seed(rows_grad, made, P, H), seed(cols_grad, made, P, W), seed(overlap_grad, made, P))
+        work = ctx.work
+        for buffer, grad in zip((work.mask_grad, *work.profile_grads), (mask_grad, rows_grad, cols_grad, overlap_grad)):
+            buffer.zero_() if grad is None else buffer.copy_(grad)
         work.vertex_grad.zero_()
         with warp_scope(pixels.device):
-            raster.rasterize_backward(ctx.sigma, work.outlines, work.kept, None if along is None else along.struct(),
-                                      as_warp(seed(mask_grad, F - made, P, H, W)), profile_grads.struct(),
-                                      work.vertex_grad_view)
+            raster.rasterize_backward(ctx.sigma, work.outlines, work.kept, ctx.along, work.views["mask_grad"],
+                                      work.views["profile_grads"], work.vertex_grad_view)
         vertex_grad = work.vertex_grad.to(pixels.dtype, copy=True)
         _POOL.give_back(work.key, work)
         del ctx.work
@@ -272,26 +261,33 @@ class _SoftSilhouettes(torch.autograd.Function):
 
 class _Workspace:
     """The raster's buffers for one shape, allocated once and reused by every call of that shape,
-    with the kernels' structs over them (made once): ``outlines`` (:class:`raster.Outlines`: the
-    visibility, projected vertices, hulls and face planes) and ``kept`` (:class:`raster.Layers`:
-    what the forward pass keeps for the backward one), and the backward pass's output
-    ``vertex_grad`` (F, P, V, 2).
+    with the kernels' structs and views over them (made once): ``outlines`` (:class:`raster.Outlines`:
+    the visibility, projected vertices, hulls and face planes), ``kept`` (:class:`raster.Layers`:
+    what the forward pass keeps for the backward one), the forward pass's outputs ``masks``
+    (F - M, P, H, W) and ``profiles`` (M rows), the backward pass's inputs ``mask_grad`` and
+    ``profile_grads`` of the same shapes (M = F with targets, else 0), the targets' frame indices
+    ``frame`` (F,) int32, and the backward pass's output ``vertex_grad`` (F, P, V, 2).
 
     A call takes one from :data:`_POOL` and gives it back once its backward pass has run (at
     once without one).
     """
 
     def __init__(self, key: tuple):
-        (F, P, V, _), plane_shape, (H, W), device = key
+        (F, P, V, _), plane_shape, (H, W), device, profiled = key
         i32, f32 = {"dtype": torch.int32, "device": device}, {"dtype": torch.float32, "device": device}
+        made = F if profiled else 0
         self.key = key
         self.visible = torch.zeros(F, P, **i32)
         self.vertices = torch.zeros(F, P, V, 2, **f32)
         self.plane_count = torch.zeros(F, P, **i32)
         self.plane = torch.zeros(plane_shape, **f32)
         self.covered = torch.zeros(F, H, W, **i32)
-        self.coverage = torch.zeros(F, P, H, W, **f32)
+        self.masks, self.mask_grad = (torch.zeros(F - made, P, H, W, **f32) for _ in range(2))
+        self.profiles, self.profile_grads = (
+            _Profiles(*(torch.zeros(made, P, *size, **f32) for size in ((H,), (W,), ()))) for _ in range(2))
+        self.frame = torch.zeros(F, **i32)
         self.vertex_grad = torch.zeros(F, P, V, 2, **f32)
+        self._targets: tuple[torch.Tensor, raster.Targets] | None = None
         with warp_scope(device):
             self.outlines = _struct(
                 raster.Outlines, visible=as_warp(self.visible), vertices=as_warp(self.vertices, wp.vec2),
@@ -301,10 +297,13 @@ class _Workspace:
                 plane=as_warp(self.plane, wp.vec4))
             rows, cols = (H + raster.TILE - 1) // raster.TILE, (W + raster.TILE - 1) // raster.TILE
             self.kept = _struct(
-                raster.Layers, covered=as_warp(self.covered), coverage=as_warp(self.coverage),
+                raster.Layers, covered=as_warp(self.covered), coverage=as_warp(torch.zeros(F, P, H, W, **f32)),
                 depth=as_warp(torch.zeros(F, P, H, W, **f32)), tiles=as_warp(torch.zeros(F, rows, cols, **i32)),
                 band=as_warp(torch.zeros(F, P, H, cols, **i32)),
                 band_coverage=as_warp(torch.zeros(F, P, H, W, **f32)), edge=as_warp(torch.zeros(F, P, H, W, **i32)))
+            self.views = {"masks": as_warp(self.masks), "mask_grad": as_warp(self.mask_grad),
+                          "profiles": self.profiles.struct(), "profile_grads": self.profile_grads.struct(),
+                          "frame": as_warp(self.frame)}
             self.vertex_grad_view = as_warp(self.vertex_grad, wp.vec2)
 
     def load(self, pixels: torch.Tensor, planes: torch.Tensor, visible: torch.Tensor) -> None:
@@ -315,19 +314,23 @@ class _Workspace:
         self.visible.copy_(visible)
         self.covered.zero_()
 
+    def targets(self, masks: torch.Tensor, frame: torch.Tensor) -> raster.Targets:
+        """The kernels' :class:`raster.Targets` for target ``masks`` (T, P, H, W) read at ``frame``
+        (F,): the frame indices copied in, the masks' struct made again only for other masks."""
+        self.frame.copy_(frame)
+        masks = masks.to(torch.float32).contiguous()
+        if self._targets is None or not _same_memory(self._targets[0], masks):
+            with warp_scope(masks.device):
+                self._targets = masks, _struct(raster.Targets, frame=self.views["frame"], masks=as_warp(masks))
+        return self._targets[1]
+
+
+def _same_memory(a: torch.Tensor, b: torch.Tensor) -> bool:
+    """Whether tensors ``a`` and ``b`` are views of the same memory (pointer, shape, strides, dtype)."""
+    return (a.data_ptr(), a.shape, a.stride(), a.dtype) == (b.data_ptr(), b.shape, b.stride(), b.dtype)
+
 
 _POOL = WorkspacePool(_Workspace)
-
-
-class _Targets(NamedTuple):
-    """The masks the profiles are taken against."""
-
-    frame: torch.Tensor  # (F,) int32 each frame's index into ``masks``
-    masks: torch.Tensor  # (T, P, H, W) float32 target masks
-
-    def struct(self) -> raster.Targets:
-        """The kernels' :class:`raster.Targets`, over zero-copy Warp views."""
-        return _struct(raster.Targets, frame=as_warp(self.frame), masks=as_warp(self.masks))
 
 
 class _Profiles(NamedTuple):
