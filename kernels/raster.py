@@ -146,19 +146,30 @@ def _hull_step(vert_in: wp.array3d(dtype=wp.vec2), f: int, k: int, n: int, cur: 
     """Jarvis step: the vertex after ``cur`` counter-clockwise (-1 when all coincide)."""
     pc = vert_in[f, k, cur]
     nxt = int(-1)
+    e = wp.vec2(0.0, 0.0)
+    ee = float(0.0)
     for q in range(n):
         d = vert_in[f, k, q] - pc
         dd = wp.dot(d, d)
         if dd > 1.0e-12:
             if nxt < 0:
                 nxt = q
+                e = d
+                ee = dd
             else:
-                e = vert_in[f, k, nxt] - pc
-                ee = wp.dot(e, e)
                 cr = _cross(e, d)
-                tol = 1.0e-6 * wp.sqrt(dd * ee)
-                if cr < -tol or (cr <= tol and dd > ee):
-                    nxt = q  # q lies right of cur -> nxt, or beyond nxt on the same line
+                # q replaces nxt if it lies right of cur -> nxt (cr < -tol), or on that line
+                # (|cr| <= tol) and beyond nxt; tol = 1e-6 |d| |e|, taken only where the sign
+                # of cr does not decide
+                take = False
+                if dd > ee:
+                    take = cr <= 0.0 or cr <= 1.0e-6 * wp.sqrt(dd * ee)
+                else:
+                    take = cr < 0.0 and cr < -1.0e-6 * wp.sqrt(dd * ee)
+                if take:
+                    nxt = q
+                    e = d
+                    ee = dd
     return nxt
 
 
