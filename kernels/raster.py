@@ -92,15 +92,15 @@ class Outlines:
 
 @wp.struct
 class Layers:
-    """What :func:`rasterize` keeps for :func:`rasterize_backward`: where two or more primitives
-    cover a pixel, their bit mask ``covered`` (F, H, W) int32 (0 elsewhere: zero it before each
-    call), coverages ``coverage`` (F, P, H, W) and depths ``depth`` (F, P, H, W) [m] (as far as
-    their order needs, :func:`_depths`); per tile, the bit mask ``tiles`` (F, H / TILE, W / TILE)
-    int32 of the primitives partial there; per row of a tile and primitive partial in the tile,
-    the bit mask ``band`` (F, P, H, W / TILE) int32 of its pixels (bit j - x0) in the soft band,
-    and at those pixels its coverage ``band_coverage`` (F, P, H, W) and the hull ``edge`` (F, P,
-    H, W) int32 its signed distance is measured to. Every call writes the masks it reads back, so the buffers need no clearing but
-    ``covered``."""
+    """What :func:`rasterize` keeps for :func:`rasterize_backward`: where any primitive covers a
+    pixel, the bit mask ``covered`` (F, H, W) int32 of those that do; where two or more do, their
+    coverages ``coverage`` (F, P, H, W) and depths ``depth`` (F, P, H, W) [m] (as far as their
+    order needs, :func:`_depths`); per tile, the bit mask ``tiles`` (F, H / TILE, W / TILE) int32
+    of the primitives partial there; per row of a tile and primitive partial in the tile, the bit
+    mask ``band`` (F, P, H, W / TILE) int32 of its pixels (bit j - x0) in the soft band, and at
+    those pixels its coverage ``band_coverage`` (F, P, H, W) and the hull ``edge`` (F, P, H, W)
+    int32 its signed distance is measured to. A call writes all that the backward pass reads back
+    (elsewhere the buffers hold older calls' values), so they need no clearing."""
 
     covered: wp.array3d(dtype=int)
     coverage: wp.array4d(dtype=float)
@@ -495,6 +495,7 @@ def _forward(
             covered = whole | covering[b]
             if covered & (covered - 1) == 0:
                 if covered != 0:
+                    kept.covered[f, i, j] = covered
                     k = _lowest(covered)
                     vk = float(1.0)
                     if covering[b] != 0:
@@ -673,7 +674,7 @@ def rasterize(
     H, W) into the zero-initialised ``masks``; with them, only the profiles of v against them,
     frame f read against target frame ``targets.frame[f]``, into the zero-initialised
     ``profiles`` (``masks`` is then not touched). Either way what the backward pass reads goes
-    to ``kept`` (its ``covered`` zero-initialised)."""
+    to ``kept``."""
     covered = kept.covered
     dim = (covered.shape[0], *_tiles(covered.shape[1], covered.shape[2]))
     profiled = int(targets is not None)

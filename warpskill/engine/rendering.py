@@ -281,7 +281,6 @@ class _Workspace:
         self.vertices = torch.zeros(F, P, V, 2, **f32)
         self.plane_count = torch.zeros(F, P, **i32)
         self.plane = torch.zeros(plane_shape, **f32)
-        self.covered = torch.zeros(F, H, W, **i32)
         self.masks, self.mask_grad = (torch.zeros(F - made, P, H, W, **f32) for _ in range(2))
         self.profiles, self.profile_grads = (
             _Profiles(*(torch.zeros(made, P, *size, **f32) for size in ((H,), (W,), ()))) for _ in range(2))
@@ -297,7 +296,8 @@ class _Workspace:
                 plane=as_warp(self.plane, wp.vec4))
             rows, cols = (H + raster.TILE - 1) // raster.TILE, (W + raster.TILE - 1) // raster.TILE
             self.kept = _struct(
-                raster.Layers, covered=as_warp(self.covered), coverage=as_warp(torch.zeros(F, P, H, W, **f32)),
+                raster.Layers, covered=as_warp(torch.zeros(F, H, W, **i32)),
+                coverage=as_warp(torch.zeros(F, P, H, W, **f32)),
                 depth=as_warp(torch.zeros(F, P, H, W, **f32)), tiles=as_warp(torch.zeros(F, rows, cols, **i32)),
                 band=as_warp(torch.zeros(F, P, H, cols, **i32)),
                 band_coverage=as_warp(torch.zeros(F, P, H, W, **f32)), edge=as_warp(torch.zeros(F, P, H, W, **i32)))
@@ -307,12 +307,11 @@ class _Workspace:
             self.vertex_grad_view = as_warp(self.vertex_grad, wp.vec2)
 
     def load(self, pixels: torch.Tensor, planes: torch.Tensor, visible: torch.Tensor) -> None:
-        """Copy a call's inputs in and clear what the kernels accumulate into (``covered``)."""
+        """Copy a call's inputs in."""
         self.vertices.copy_(pixels.detach())
         self.plane.copy_(planes)
         self.plane_count.copy_((planes[..., 3] < 0).sum(dim=-1))
         self.visible.copy_(visible)
-        self.covered.zero_()
 
     def targets(self, masks: torch.Tensor, frame: torch.Tensor) -> raster.Targets:
         """The kernels' :class:`raster.Targets` for target ``masks`` (T, P, H, W) read at ``frame``
