@@ -6,12 +6,15 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Iterator, Sequence
 
+import numpy as np
 import torch
 import warp as wp
 
 from warpskill.warp_log import configure_warp_log
 
 configure_warp_log()  # quiet unless asked for (warpskill --verbose), before any kernel loads
+
+_DENORMAL = 1e-40  # a float32 denormal
 
 
 def as_warp(tensor: torch.Tensor, dtype=None, requires_grad: bool = False) -> wp.array:
@@ -53,7 +56,7 @@ def warp_scope(device: torch.device) -> Iterator[None]:
         with wp.ScopedStream(wp.stream_from_torch(device)):
             yield
         return
-    flushing = torch.tensor(1e-40, dtype=torch.float32).item() == 0.0
+    flushing = np.float32(_DENORMAL) == 0.0  # this thread already flushes denormals to zero
     with wp.ScopedDevice("cpu"):
         if flushing or not torch.set_flush_denormal(True):
             yield
