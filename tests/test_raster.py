@@ -438,8 +438,35 @@ def test_the_workspace_is_reused_and_never_shared_by_pending_backward_passes():
     [alone] = gradient(near)
     together, _ = gradient(near, far)  # the second forward pass ran before the first backward pass
     torch.testing.assert_close(together, alone, rtol=0, atol=0)
-    free = _POOL.free[next(key for key in _POOL.free if key[2] == (30, 53))]
+    free = _POOL.free[next(key for key in _POOL.free if key[2] == (30, 53) and key[4])]  # profiles' workspaces
     assert len(free) == 2
     kept = list(free)
     gradient(near)
     assert len(free) == 2 and all(any(w is k for k in kept) for w in free)  # reused, none made
+
+
+def test_a_workspace_left_by_another_scene_gives_what_a_fresh_one_gives():
+    # The raster's buffers are never cleared between calls: a call must read back only what it
+    # wrote itself, whatever a call of the same shape with other layers and bands left there.
+    intrinsics = FULL.resized(30, 53)
+    gen = torch.Generator().manual_seed(6)
+    targets = torch.rand(3, 3, 30, 53, generator=gen)
+    weights = [torch.rand(3, 3, n, generator=gen) for n in (30, 53)] + [torch.rand(3, 3, generator=gen)]
+    near, far = ({k: v.float() for k, v in SCENES[name].items()} for name in ("hand_in_front", "object_behind_static"))
+
+    def draw(scene):  # profiles, their loss's gradient, then the masks' gradient
+        tip = scene["hand_pos"].clone().requires_grad_(True)
+        profiles = silhouette_profiles(**(scene | {"hand_pos": tip}), intrinsics=intrinsics, targets=targets)
+        (profile_grad,) = torch.autograd.grad(sum((p * w).sum() for p, w in zip(profiles, weights)), tip)
+        masks = render_silhouettes(**(scene | {"hand_pos": tip}), intrinsics=intrinsics)
+        (mask_grad,) = torch.autograd.grad((masks * targets).sum(), tip)
+        return [p.detach() for p in profiles] + [masks.detach(), profile_grad, mask_grad]
+
+    _POOL.free.clear()
+    fresh = draw(near)
+    kept = [w for free in _POOL.free.values() for w in free]
+    draw(far)
+    again = draw(near)
+    assert all(any(w is k for k in kept) for free in _POOL.free.values() for w in free)  # the same buffers
+    for first, second in zip(fresh, again):
+        torch.testing.assert_close(second, first, rtol=0, atol=0)
