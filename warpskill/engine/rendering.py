@@ -231,27 +231,29 @@ class _SoftSilhouettes(torch.autograd.Function):
         work = _POOL.take((tuple(pixels.shape), tuple(planes.shape), tuple(image_size), device, targets is not None))
         work.load(pixels, planes, visible)
         along = None if targets is None else work.targets(targets, target_frame)
-        torch._foreach_zero_([work.masks, *work.profiles])
+        masks = torch.zeros(work.mask_shape, dtype=torch.float32, device=device)  # the call's own: image-sized
+        torch._foreach_zero_(list(work.profiles))
         with warp_scope(device):
             raster.build_hulls(as_warp(sides), raster.CUTOFF * sigma, work.outlines)
-            raster.rasterize(wp.vec4(*camera_vec), sigma, work.outlines, along, work.views["masks"], work.kept,
+            raster.rasterize(wp.vec4(*camera_vec), sigma, work.outlines, along, as_warp(masks), work.kept,
                              work.views["profiles"])
         if ctx.needs_input_grad[0]:
             ctx.work, ctx.along, ctx.sigma = work, along, sigma
             ctx.save_for_backward(pixels.detach())
         else:
             _POOL.give_back(work.key, work)
-        return work.masks.clone(), *(profile.clone() for profile in work.profiles)
+        return masks, *(profile.clone() for profile in work.profiles)
 
     @staticmethod
     def backward(ctx, mask_grad, rows_grad, cols_grad, overlap_grad):
         (pixels,) = ctx.saved_tensors
         work = ctx.work
-        for buffer, grad in zip((work.mask_grad, *work.profile_grads), (mask_grad, rows_grad, cols_grad, overlap_grad)):
+        for buffer, grad in zip(work.profile_grads, (rows_grad, cols_grad, overlap_grad)):
             buffer.zero_() if grad is None else buffer.copy_(grad)
+        mask_grad = torch.zeros(work.mask_shape, device=pixels.device) if mask_grad is None else mask_grad.float()
         work.vertex_grad.zero_()
         with warp_scope(pixels.device):
-            raster.rasterize_backward(ctx.sigma, work.outlines, work.kept, ctx.along, work.views["mask_grad"],
+            raster.rasterize_backward(ctx.sigma, work.outlines, work.kept, ctx.along, as_warp(mask_grad),
                                       work.views["profile_grads"], work.vertex_grad_view)
         vertex_grad = work.vertex_grad.to(pixels.dtype, copy=True)
         _POOL.give_back(work.key, work)
@@ -263,10 +265,10 @@ class _Workspace:
     """The raster's buffers for one shape, allocated once and reused by every call of that shape,
     with the kernels' structs and views over them (made once): ``outlines`` (:class:`raster.Outlines`:
     the visibility, projected vertices, hulls and face planes), ``kept`` (:class:`raster.Layers`:
-    what the forward pass keeps for the backward one), the forward pass's outputs ``masks``
-    (F - M, P, H, W) and ``profiles`` (M rows), the backward pass's inputs ``mask_grad`` and
-    ``profile_grads`` of the same shapes (M = F with targets, else 0), the targets' frame indices
-    ``frame`` (F,) int32, and the backward pass's output ``vertex_grad`` (F, P, V, 2).
+    what the forward pass keeps for the backward one), the ``profiles`` (M rows; M = F with
+    targets, else 0) and their gradients ``profile_grads``, the targets' frame indices ``frame``
+    (F,) int32, and the backward pass's output ``vertex_grad`` (F, P, V, 2). The image-sized
+    masks and their gradient are the call's own.
 
     A call takes one from :data:`_POOL` and gives it back once its backward pass has run (at
     once without one).
@@ -281,7 +283,7 @@ class _Workspace:
         self.vertices = torch.zeros(F, P, V, 2, **f32)
         self.plane_count = torch.zeros(F, P, **i32)
         self.plane = torch.zeros(plane_shape, **f32)
-        self.masks, self.mask_grad = (torch.zeros(F - made, P, H, W, **f32) for _ in range(2))
+        self.mask_shape = (F - made, P, H, W)  # the masks' (and their gradient's): F without targets, else none
         self.profiles, self.profile_grads = (
             _Profiles(*(torch.zeros(made, P, *size, **f32) for size in ((H,), (W,), ()))) for _ in range(2))
         self.frame = torch.zeros(F, **i32)
@@ -301,8 +303,7 @@ class _Workspace:
                 depth=as_warp(torch.zeros(F, P, H, W, **f32)), tiles=as_warp(torch.zeros(F, rows, cols, **i32)),
                 band=as_warp(torch.zeros(F, P, H, cols, **i32)),
                 band_coverage=as_warp(torch.zeros(F, P, H, W, **f32)), edge=as_warp(torch.zeros(F, P, H, W, **i32)))
-            self.views = {"masks": as_warp(self.masks), "mask_grad": as_warp(self.mask_grad),
-                          "profiles": self.profiles.struct(), "profile_grads": self.profile_grads.struct(),
+            self.views = {"profiles": self.profiles.struct(), "profile_grads": self.profile_grads.struct(),
                           "frame": as_warp(self.frame)}
             self.vertex_grad_view = as_warp(self.vertex_grad, wp.vec2)
 
