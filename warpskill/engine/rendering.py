@@ -249,12 +249,15 @@ class _SoftSilhouettes(torch.autograd.Function):
         (pixels,) = ctx.saved_tensors
         work = ctx.work
         for buffer, grad in zip(work.profile_grads, (rows_grad, cols_grad, overlap_grad)):
-            buffer.zero_() if grad is None else buffer.copy_(grad)
+            if grad is None:  # a profile the loss does not read
+                buffer.zero_()
+            else:
+                buffer.copy_(grad)
         mask_grad = torch.zeros(work.mask_shape, device=pixels.device) if mask_grad is None else mask_grad.float()
         work.vertex_grad.zero_()
         with warp_scope(pixels.device):
             raster.rasterize_backward(ctx.sigma, work.outlines, work.kept, ctx.along, as_warp(mask_grad),
-                                      work.views["profile_grads"], work.vertex_grad_view)
+                                      work.views["profile_grads"], work.views["vertex_grad"])
         vertex_grad = work.vertex_grad.to(pixels.dtype, copy=True)
         _POOL.give_back(work.key, work)
         del ctx.work
@@ -304,8 +307,7 @@ class _Workspace:
                 band=as_warp(torch.zeros(F, P, H, cols, **i32)),
                 band_coverage=as_warp(torch.zeros(F, P, H, W, **f32)), edge=as_warp(torch.zeros(F, P, H, W, **i32)))
             self.views = {"profiles": self.profiles.struct(), "profile_grads": self.profile_grads.struct(),
-                          "frame": as_warp(self.frame)}
-            self.vertex_grad_view = as_warp(self.vertex_grad, wp.vec2)
+                          "frame": as_warp(self.frame), "vertex_grad": as_warp(self.vertex_grad, wp.vec2)}
 
     def load(self, pixels: torch.Tensor, planes: torch.Tensor, visible: torch.Tensor) -> None:
         """Copy a call's inputs in."""
