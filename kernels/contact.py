@@ -62,11 +62,12 @@ def contact_impulses_func(dtype):
     """The ``wp.func`` ``add_contact_impulses`` for scalar type ``dtype`` (float32 or float64).
 
     ``add_contact_impulses(kp, kv, mu, object_size, static_pos_in, static_rot_in,
-    static_size_in, object_pos, object_rot, object_vel, object_ang_vel, b, n, impulse_v_out,
-    impulse_w_out)`` adds the contact impulses j_v [m/s^2] and j_w [rad/s^2] on the cuboid of
-    scene ``b`` at pose (``object_pos``, ``object_rot``), moving with total velocities
-    ``object_vel`` [m/s] and ``object_ang_vel`` [rad/s], to ``impulse_v_out[b, n]`` and
-    ``impulse_w_out[b, n]`` (statics: arrays (B, K)).
+    static_size_in, object_pos, object_rot, object_vel, object_ang_vel, lane, lanes, b, n,
+    impulse_v_out, impulse_w_out)`` adds the contact impulses j_v [m/s^2] and j_w [rad/s^2] of
+    sample points ``lane``, ``lane + lanes``, ... on the cuboid of scene ``b`` at pose
+    (``object_pos``, ``object_rot``), moving with total velocities ``object_vel`` [m/s] and
+    ``object_ang_vel`` [rad/s], to ``impulse_v_out[b, n]`` and ``impulse_w_out[b, n]``
+    (statics: arrays (B, K)): ``lanes`` threads with lanes 0, 1, ... add all of them.
 
     It sums with ``wp.atomic_add`` and keeps no loop-carried locals, so its adjoint is exact
     inside a dynamic loop. Its replay (the forward pass re-run during backward) does nothing:
@@ -90,6 +91,8 @@ def contact_impulses_func(dtype):
         object_rot: mat33,
         object_vel: vec3,
         object_ang_vel: vec3,
+        lane: int,
+        lanes: int,
         # Data out (entry [b, n]):
         b: int,
         n: int,
@@ -108,7 +111,7 @@ def contact_impulses_func(dtype):
         point_reach = dtype(1.01) * damping_reach + dtype(1.0e-6)
         up = vec3(dtype(0.0), dtype(0.0), dtype(1.0))
         if object_pos[2] <= reach:
-            for i in range(NUM_SAMPLE_POINTS):
+            for i in range(lane, NUM_SAMPLE_POINTS, lanes):
                 offset = _sample_point(i, object_size)
                 height = object_pos[2] + wp.dot(vec3(object_rot[2, 0], object_rot[2, 1], object_rot[2, 2]), offset)
                 if height <= point_reach:
@@ -123,7 +126,7 @@ def contact_impulses_func(dtype):
             offset = wp.transpose(rot) * (object_pos - static_pos_in[b, k])  # the centre, static frame
             d_centre, _ = static_box_sdf(offset, half)
             if d_centre <= reach:
-                for i in range(NUM_SAMPLE_POINTS):
+                for i in range(lane, NUM_SAMPLE_POINTS, lanes):
                     q = object_rot * _sample_point(i, object_size)
                     v = object_vel + wp.cross(object_ang_vel, q)
                     d, normal = static_box_sdf(offset + wp.transpose(rot) * q, half)
@@ -145,6 +148,8 @@ def contact_impulses_func(dtype):
         object_rot: mat33,
         object_vel: vec3,
         object_ang_vel: vec3,
+        lane: int,
+        lanes: int,
         b: int,
         n: int,
         impulse_v_out: wp.array2d(dtype=vec3),
@@ -184,11 +189,12 @@ def _kernels(dtype):
         object_rot_in: wp.array(dtype=mat33),
         object_vel_in: wp.array(dtype=vec3),
         object_ang_vel_in: wp.array(dtype=vec3),
+        lanes: int,
         # Data out:
         impulse_v_out: wp.array2d(dtype=vec3),
         impulse_w_out: wp.array2d(dtype=vec3),
     ):
-        b = wp.tid()
+        b, lane = wp.tid()
         add_contact_impulses(
             kp,
             kv,
@@ -201,6 +207,8 @@ def _kernels(dtype):
             object_rot_in[b],
             object_vel_in[b],
             object_ang_vel_in[b],
+            lane,
+            lanes,
             b,
             0,
             impulse_v_out,
@@ -238,16 +246,18 @@ def contact_impulses(
     object_ang_vel: wp.array,
     impulse_v_out: wp.array,
     impulse_w_out: wp.array,
+    lanes: int = 1,
 ):
-    """Contact impulses of B cuboids (arrays (B,), statics (B, K)) into the (B,) outputs."""
+    """Contact impulses of B cuboids (arrays (B,), statics (B, K)) into the (B,) outputs, by
+    ``lanes`` threads per cuboid (each its share of the sample points)."""
     num_scenes = object_pos.shape[0]
     impulse_v_out.zero_()
     impulse_w_out.zero_()
     wp.launch(
         _kernels(object_pos.dtype._wp_scalar_type_)[0],
-        dim=num_scenes,
+        dim=(num_scenes, lanes),
         inputs=[kp, kv, mu, object_size, static_pos, static_rot, static_size]
-        + [object_pos, object_rot, object_vel, object_ang_vel],
+        + [object_pos, object_rot, object_vel, object_ang_vel, lanes],
         outputs=[impulse_v_out.reshape((num_scenes, 1)), impulse_w_out.reshape((num_scenes, 1))],
         device=object_pos.device,
     )

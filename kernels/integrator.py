@@ -1,8 +1,11 @@
-"""Whole-rollout semi-implicit integrator: one thread per scene, a dynamic loop over steps.
+"""Whole-rollout semi-implicit integrator: a block of threads per scene, a dynamic loop over steps.
 
 Step n reads state n from per-step arrays (B, S + 1) and writes state n + 1; nothing is
-carried across iterations in locals, so Warp's reverse pass replays every step exactly. Per
-step, with r = x_o - x_h and s the latched grasp switch (1 = grasped; :func:`_grasp_switch`):
+carried across iterations in locals, so Warp's reverse pass replays every step exactly. The
+block's threads (lanes) share the contact sample points of a step; its first lane integrates
+and writes the states, and a block barrier separates each step's writes from the next reads
+(:func:`rollout` picks one lane on the CPU, :data:`CUDA_LANES` on a GPU). Per step, with
+r = x_o - x_h and s the latched grasp switch (1 = grasped; :func:`_grasp_switch`):
 
     ds = s_n - s_{n-1}  (s_{-1} = s_0)
     v_o += max(ds, 0) (-v_o) + max(-ds, 0) (v_h + w_h x r),   w_o likewise with w_h
@@ -28,6 +31,15 @@ import warp as wp
 from . import OPTIMIZATION_LEVEL
 from .contact import contact_impulses_func, tip_distance
 from .geometry import exp_so3, orthonormalize
+
+CUDA_LANES = 32
+"""Threads per scene on a GPU: one warp, about two of the 62 contact sample points each."""
+
+
+@wp.func_native(snippet="WP_TILE_SYNC();", adj_snippet="WP_TILE_SYNC();")
+def _block_barrier():
+    """Wait for every thread of the block (also in the reverse pass): writes before it are seen after it."""
+    ...
 
 
 @wp.func
@@ -89,30 +101,32 @@ def _kernels(dtype):
         impulse_v_out: wp.array2d(dtype=vec3),
         impulse_w_out: wp.array2d(dtype=vec3),
     ):
-        b = wp.tid()
+        b, lane = wp.tid()
+        lanes = wp.block_dim()
         zero = dtype(0.0)
         one = dtype(1.0)
         size = object_size_in[b]
         fall = vec3(zero, zero, -gravity)
 
-        # state 0: the object at rest (own velocities zero)
-        d0 = tip_distance(hand_pos0_in[b], object_pos0_in[b], object_rot0_in[b], size)
-        s0 = _grasp_switch(d0, grasp0_in[b], zero, grasp_tau)
-        v_h0 = vec3(hand_vel_in[b, 0, 0], hand_vel_in[b, 0, 1], hand_vel_in[b, 0, 2])
-        w_h0 = vec3(hand_vel_in[b, 0, 3], hand_vel_in[b, 0, 4], hand_vel_in[b, 0, 5])
-        hand_pos_out[b, 0] = hand_pos0_in[b]
-        hand_rot_out[b, 0] = hand_rot0_in[b]
-        grasp_out[b, 0] = grasp0_in[b]
-        grasped_out[b, 0] = s0
-        tip_distance_out[b, 0] = d0
-        object_pos_out[b, 0] = object_pos0_in[b]
-        object_rot_out[b, 0] = object_rot0_in[b]
-        object_own_vel_out[b, 0] = vec3(zero, zero, zero)
-        object_own_ang_vel_out[b, 0] = vec3(zero, zero, zero)
-        object_vel_out[b, 0] = s0 * (v_h0 + wp.cross(w_h0, object_pos0_in[b] - hand_pos0_in[b]))
-        object_ang_vel_out[b, 0] = s0 * w_h0
+        if lane == 0:  # state 0: the object at rest (own velocities zero)
+            d0 = tip_distance(hand_pos0_in[b], object_pos0_in[b], object_rot0_in[b], size)
+            s0 = _grasp_switch(d0, grasp0_in[b], zero, grasp_tau)
+            v_h0 = vec3(hand_vel_in[b, 0, 0], hand_vel_in[b, 0, 1], hand_vel_in[b, 0, 2])
+            w_h0 = vec3(hand_vel_in[b, 0, 3], hand_vel_in[b, 0, 4], hand_vel_in[b, 0, 5])
+            hand_pos_out[b, 0] = hand_pos0_in[b]
+            hand_rot_out[b, 0] = hand_rot0_in[b]
+            grasp_out[b, 0] = grasp0_in[b]
+            grasped_out[b, 0] = s0
+            tip_distance_out[b, 0] = d0
+            object_pos_out[b, 0] = object_pos0_in[b]
+            object_rot_out[b, 0] = object_rot0_in[b]
+            object_own_vel_out[b, 0] = vec3(zero, zero, zero)
+            object_own_ang_vel_out[b, 0] = vec3(zero, zero, zero)
+            object_vel_out[b, 0] = s0 * (v_h0 + wp.cross(w_h0, object_pos0_in[b] - hand_pos0_in[b]))
+            object_ang_vel_out[b, 0] = s0 * w_h0
 
         for n in range(hand_vel_in.shape[1]):
+            _block_barrier()  # state n, written by lane 0, is seen by every lane
             x_h = hand_pos_out[b, n]
             x_o = object_pos_out[b, n]
             rot_o = object_rot_out[b, n]
@@ -144,33 +158,37 @@ def _kernels(dtype):
                 rot_o,
                 s * v_carry + v_e,
                 s * w_h + w_e,
+                lane,
+                lanes,
                 b,
                 n,
                 impulse_v_out,
                 impulse_w_out,
             )
-            free = one - s
-            v_new = v_e + dt * (impulse_v_out[b, n] - s * grasp_decay * v_e + free * (fall - free_damping * v_e))
-            w_new = w_e + dt * (impulse_w_out[b, n] - s * grasp_decay * w_e - free * free_damping * w_e)
+            _block_barrier()  # every lane's impulses are summed
+            if lane == 0:
+                free = one - s
+                v_new = v_e + dt * (impulse_v_out[b, n] - s * grasp_decay * v_e + free * (fall - free_damping * v_e))
+                w_new = w_e + dt * (impulse_w_out[b, n] - s * grasp_decay * w_e - free * free_damping * w_e)
 
-            turn_h = exp_so3(dt * w_h)
-            x_h_new = x_h + dt * v_h
-            x_o_new = x_o + s * (x_h_new + turn_h * r - x_o) + dt * v_new
-            rot_o_new = orthonormalize(exp_so3(dt * w_new) * exp_so3(s * dt * w_h) * rot_o)
-            g_new = grasp_out[b, n] + dt * hand_vel_in[b, n, 6]
-            d_new = tip_distance(x_h_new, x_o_new, rot_o_new, size)
+                turn_h = exp_so3(dt * w_h)
+                x_h_new = x_h + dt * v_h
+                x_o_new = x_o + s * (x_h_new + turn_h * r - x_o) + dt * v_new
+                rot_o_new = orthonormalize(exp_so3(dt * w_new) * exp_so3(s * dt * w_h) * rot_o)
+                g_new = grasp_out[b, n] + dt * hand_vel_in[b, n, 6]
+                d_new = tip_distance(x_h_new, x_o_new, rot_o_new, size)
 
-            hand_pos_out[b, n + 1] = x_h_new
-            hand_rot_out[b, n + 1] = turn_h * hand_rot_out[b, n]
-            grasp_out[b, n + 1] = g_new
-            grasped_out[b, n + 1] = _grasp_switch(d_new, g_new, s, grasp_tau)
-            tip_distance_out[b, n + 1] = d_new
-            object_pos_out[b, n + 1] = x_o_new
-            object_rot_out[b, n + 1] = rot_o_new
-            object_own_vel_out[b, n + 1] = v_new
-            object_own_ang_vel_out[b, n + 1] = w_new
-            object_vel_out[b, n + 1] = s * v_carry + v_new
-            object_ang_vel_out[b, n + 1] = s * w_h + w_new
+                hand_pos_out[b, n + 1] = x_h_new
+                hand_rot_out[b, n + 1] = turn_h * hand_rot_out[b, n]
+                grasp_out[b, n + 1] = g_new
+                grasped_out[b, n + 1] = _grasp_switch(d_new, g_new, s, grasp_tau)
+                tip_distance_out[b, n + 1] = d_new
+                object_pos_out[b, n + 1] = x_o_new
+                object_rot_out[b, n + 1] = rot_o_new
+                object_own_vel_out[b, n + 1] = v_new
+                object_own_ang_vel_out[b, n + 1] = w_new
+                object_vel_out[b, n + 1] = s * v_carry + v_new
+                object_ang_vel_out[b, n + 1] = s * w_h + w_new
 
     @wp.kernel(module="unique", module_options={"optimization_level": OPTIMIZATION_LEVEL})
     def _gather_frames(
@@ -276,6 +294,12 @@ class Scratch:
         self.impulse_w.zero_()
 
 
+def lanes(device: wp.Device) -> int:
+    """Threads per scene of :func:`rollout` on ``device``: :data:`CUDA_LANES` on a GPU, on the CPU
+    one (Warp runs a CPU block as one thread; with ``wp.config.enable_cpu_blocks`` as many fibers)."""
+    return 1 if device.is_cpu and not wp.config.enable_cpu_blocks else CUDA_LANES
+
+
 def rollout(
     config,
     dt: float,
@@ -293,14 +317,16 @@ def rollout(
     scratch: Scratch,
 ):
     """Integrate B scenes over S = ``hand_vel.shape[1]`` steps of ``dt`` [s] into ``steps`` (B, S+1),
-    working in the cleared ``scratch`` (B, S + 1).
+    working in the cleared ``scratch`` (B, S + 1), with :func:`lanes` threads per scene.
 
     ``config`` holds the physics constants (``warpskill.engine.simulation.PhysicsConfig``); arrays are
     (B,) (statics (B, K), ``hand_vel`` (B, S, 7) = v_h, w_h, grasp rate).
     """
+    lanes_per_scene = lanes(hand_vel.device)
     wp.launch(
         _kernels(hand_vel.dtype)[0],
-        dim=hand_vel.shape[0],
+        dim=(hand_vel.shape[0], lanes_per_scene),
+        block_dim=lanes_per_scene,
         inputs=[
             dt,
             config.kp,

@@ -2,10 +2,11 @@
 
 Per frame f and primitive k (a convex prism projected to 2D vertices), :func:`build_hulls`
 finds the convex hull of the projected vertices (Jarvis march), its edge lines and screen
-bounds padded by the soft band. :func:`rasterize` cuts the image into TILE x TILE tiles; a
-tile thread sorts the primitives into out of reach, fully covered, or partial (keeping only
-the hull edges that can matter in the tile), sorts the partial ones again per row of the tile,
-and writes, per pixel centre p = (j + 0.5, i + 0.5):
+bounds padded by the soft band. :func:`rasterize` cuts the image into TILE x TILE tiles, each
+drawn by :func:`lanes` threads taking every lanes-th row of it (one on the CPU, a thread per row
+on a GPU); a thread sorts the primitives into out of reach, fully covered, or partial over its
+tile (keeping only the hull edges that can matter in the tile), sorts the partial ones again
+per row, and writes, per pixel centre p = (j + 0.5, i + 0.5):
 
     sd_k = max over hull edges e of n_e . p - o_e       signed distance [px], n_e outward
     c_k  = sigmoid(-sd_k / sigma)                       exactly 0 (1) beyond +(-) CUTOFF sigma
@@ -21,12 +22,12 @@ each pixel that two or more primitives cover: the bit mask of those primitives, 
 coverages c_k and their depths z_k; and where a primitive's soft band is (|sd_k| <= CUTOFF
 sigma), which primitives are partial in each tile, the band's pixels per row as a bit mask,
 and at them c_k and the edge of sd_k. :func:`rasterize_backward` visits, per tile and
-primitive, only those band pixels, reads c_k there and the other layers kept at the pixel,
-turns dL/dv (given, or from the profiles' gradients: dL/dv_ij = g_row_i + g_col_j + g_overlap
-t_ij) into dL/dsd_k and reduces, per hull edge e, the moments (sum g, sum g (p - a_e)) over the
-pixels whose distance edge is e (a_e the edge's first vertex), which give the gradients of the
-edge's two vertices in closed form, added atomically per (tile, primitive, edge). Depth order
-carries no gradient. All kernels are forward-only.
+primitive (its rows shared by threads likewise), only those band pixels, reads c_k there and
+the other layers kept at the pixel, turns dL/dv (given, or from the profiles' gradients:
+dL/dv_ij = g_row_i + g_col_j + g_overlap t_ij) into dL/dsd_k and reduces, per hull edge e, the
+moments (sum g, sum g (p - a_e)) over the pixels whose distance edge is e (a_e the edge's first
+vertex), which give the gradients of the edge's two vertices in closed form, added atomically
+per (thread, primitive, edge). Depth order carries no gradient. All kernels are forward-only.
 """
 
 from __future__ import annotations
@@ -430,6 +431,7 @@ def _forward(
     intrinsics: wp.vec4,
     sigma: float,
     profiled: int,
+    lanes: int,
     # Data in:
     o: Outlines,
     targets: Targets,
@@ -438,14 +440,15 @@ def _forward(
     kept: Layers,
     out: Profiles,
 ):
-    f, ty, tx = wp.tid()
+    f, ty, tx, lane = wp.tid()
     H, W = kept.covered.shape[1], kept.covered.shape[2]
     x0, y0 = tx * TILE, ty * TILE
     x1 = wp.min(x0 + TILE, W)
     lo, hi = _tile_corners(x0, y0, H, W)
     limit = CUTOFF * sigma
     partial, full, edges = _tile_classes(o, f, lo, hi, limit)
-    kept.tiles[f, ty, tx] = partial
+    if lane == 0:
+        kept.tiles[f, ty, tx] = partial
     if partial == 0 and full == 0:
         return
     t = int(0)
@@ -455,7 +458,7 @@ def _forward(
     coverage = _ROW_VALUES()  # per partial primitive along the row, where it covers a pixel
     distance = _ROW_VALUES()
     distance_edge = _ROW_EDGES()
-    for i in range(y0, wp.min(y0 + TILE, H)):
+    for i in range(y0 + lane, wp.min(y0 + TILE, H), lanes):
         v_row = float(i) + 0.5
         row = _LAYERS()
         bands = _EDGES()
@@ -590,6 +593,7 @@ def _backward(
     # Model:
     sigma: float,
     profiled: int,
+    lanes: int,
     # Data in:
     o: Outlines,
     kept: Layers,
@@ -599,7 +603,8 @@ def _backward(
     # Data out:
     vertex_grad_out: wp.array3d(dtype=wp.vec2),
 ):
-    f, k, ty, tx = wp.tid()
+    f, k, tile, lane = wp.tid()
+    ty, tx = tile // kept.tiles.shape[2], tile % kept.tiles.shape[2]
     if (kept.tiles[f, ty, tx] >> k) & 1 == 0:  # coverage is constant (0 or 1) over the tile
         return
     H = kept.covered.shape[1]
@@ -611,7 +616,7 @@ def _backward(
     count = o.count[f, k]
     origin = wp.vec2(float(x0 + TILE // 2), float(y0 + TILE // 2))  # moments about the tile centre
     acc = _MOMENTS()
-    for i in range(y0, wp.min(y0 + TILE, H)):
+    for i in range(y0 + lane, wp.min(y0 + TILE, H), lanes):
         band = kept.band[f, k, i, tx]  # where the forward pass drew k's soft band in this row
         while band != 0:
             j = x0 + _lowest(band)
@@ -659,6 +664,12 @@ def _tiles(height: int, width: int) -> tuple[int, int]:
     return (height + TILE - 1) // TILE, (width + TILE - 1) // TILE
 
 
+def lanes(device: wp.Device) -> int:
+    """Threads per tile of :func:`rasterize` and :func:`rasterize_backward` on ``device``: one on
+    the CPU (Warp runs its threads one after another there), a thread per row on a GPU."""
+    return 1 if device.is_cpu else TILE
+
+
 def build_hulls(sides: wp.array, pad: float, outlines: Outlines) -> None:
     """The hulls of ``outlines`` (its ``hull``, ``count``, ``line`` and ``bound``, bounds padded by
     ``pad`` [px]) from its ``visible`` and ``vertices``; ``sides`` (P,) int32 each prism's sides."""
@@ -674,11 +685,12 @@ def rasterize(
     H, W) into the zero-initialised ``masks``; with them, only the profiles of v against them,
     frame f read against target frame ``targets.frame[f]``, into the zero-initialised
     ``profiles`` (``masks`` is then not touched). Either way what the backward pass reads goes
-    to ``kept``."""
+    to ``kept``. A tile takes :func:`lanes` threads."""
     covered = kept.covered
-    dim = (covered.shape[0], *_tiles(covered.shape[1], covered.shape[2]))
+    threads = lanes(covered.device)
+    dim = (covered.shape[0], *_tiles(covered.shape[1], covered.shape[2]), threads)
     profiled = int(targets is not None)
-    inputs = [intrinsics, sigma, profiled, outlines, targets if profiled else _no_targets(covered.device)]
+    inputs = [intrinsics, sigma, profiled, threads, outlines, targets if profiled else _no_targets(covered.device)]
     wp.launch(_forward, dim=dim, inputs=inputs, outputs=[masks, kept, profiles], device=covered.device)
 
 
@@ -688,11 +700,14 @@ def rasterize_backward(
 ) -> None:
     """dL/d(projected vertices) (F, P, V) into the zero-initialised ``vertex_grad``, from the
     outlines and the layers :func:`rasterize` kept. dL/dv is ``mask_grad`` (F, P, H, W) without
-    ``targets``, and with them comes from the gradients of the profiles ``profile_grads``."""
+    ``targets``, and with them comes from the gradients of the profiles ``profile_grads``. A tile
+    takes :func:`lanes` threads per primitive."""
     coverage = kept.coverage
-    dim = (coverage.shape[0], coverage.shape[1], *_tiles(coverage.shape[2], coverage.shape[3]))
+    threads = lanes(coverage.device)
+    rows, cols = _tiles(coverage.shape[2], coverage.shape[3])
+    dim = (coverage.shape[0], coverage.shape[1], rows * cols, threads)
     profiled = int(targets is not None)
-    inputs = [sigma, profiled, outlines, kept, targets if profiled else _no_targets(coverage.device), mask_grad,
+    inputs = [sigma, profiled, threads, outlines, kept, targets if profiled else _no_targets(coverage.device), mask_grad,
               profile_grads]
     wp.launch(_backward, dim=dim, inputs=inputs, outputs=[vertex_grad], device=vertex_grad.device)
 

@@ -111,14 +111,14 @@ def _arrays(s: dict, scalar, requires_grad=False, device="cpu") -> dict:
     }
 
 
-def _launch_impulses(a: dict, scalar):
+def _launch_impulses(a: dict, scalar, lanes: int = 1):
     vec3 = wp.types.vector(3, scalar)
     B, device = a["object_pos"].shape[0], a["object_pos"].device
     jv = wp.zeros(B, dtype=vec3, requires_grad=a["object_pos"].requires_grad, device=device)
     jw = wp.zeros(B, dtype=vec3, requires_grad=a["object_pos"].requires_grad, device=device)
     contact_impulses(
         KP, KV, MU, a["object_size"], a["static_pos"], a["static_rot"], a["static_size"],
-        a["object_pos"], a["object_rot"], a["object_vel"], a["object_ang_vel"], jv, jw,
+        a["object_pos"], a["object_rot"], a["object_vel"], a["object_ang_vel"], jv, jw, lanes,
     )  # fmt: skip
     return jv, jw
 
@@ -154,9 +154,11 @@ def _check_adjoint_against_fd(s: dict, evaluate, seeds: list[np.ndarray], eps=1e
 
 @pytest.mark.slow
 @pytest.mark.parametrize("scalar, rtol", [(wp.float64, 1e-12), (wp.float32, 2e-5)])
-def test_impulses_match_numpy_reference(scalar, rtol):
+@pytest.mark.parametrize("lanes", [1, 5], ids=["one thread", "5 threads"])
+def test_impulses_match_numpy_reference(scalar, rtol, lanes):
+    """One thread per cuboid adds all its sample points; 5 (not dividing 62) share them."""
     s = _scenes(seed=1)
-    jv, jw = (out.numpy() for out in _launch_impulses(_arrays(s, scalar), scalar))
+    jv, jw = (out.numpy() for out in _launch_impulses(_arrays(s, scalar), scalar, lanes))
     for b in range(len(jv)):
         ref_v, ref_w = _reference_impulses(s, b)
         assert np.abs(ref_v).max() > 1.0, "scene without contact"
@@ -189,11 +191,13 @@ def test_static_cuboid_bottom_does_not_push():
 
 
 @pytest.mark.parametrize("device", warp_devices())
-def test_impulse_adjoints_match_finite_differences(device):
+@pytest.mark.parametrize("lanes", [1, 5], ids=["one thread", "5 threads"])
+def test_impulse_adjoints_match_finite_differences(device, lanes):
     s = _scenes(seed=4, num_scenes=3, num_statics=2)
     rng = np.random.default_rng(0)
     seeds = [rng.normal(size=(3, 3)), rng.normal(size=(3, 3))]
-    _check_adjoint_against_fd(s, lambda a: _launch_impulses(a, wp.float64), seeds, eps=1e-7, rtol=1e-6, device=device)
+    _check_adjoint_against_fd(s, lambda a: _launch_impulses(a, wp.float64, lanes), seeds, eps=1e-7, rtol=1e-6,
+                              device=device)
 
 
 def _launch_tip_distance(a: dict):

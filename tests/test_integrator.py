@@ -6,7 +6,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import torch
+import warp as wp
 from device_support import torch_devices
+from warpskill.kernels.integrator import CUDA_LANES, lanes
 
 from warpskill.engine.records import SceneInputs
 from warpskill.engine.simulation import simulate
@@ -88,10 +90,32 @@ def test_grasp_scene_does_what_it_says():
     assert out.object_pos[1, -1, 2] < 0.05  # tumbled off onto the ground
 
 
-@pytest.mark.parametrize("device", torch_devices())
-def test_rollout_adjoints_match_finite_differences(device):
+CPU_BLOCKS = "cpu blocks"
+"""The CPU running the GPU's shape: a block of CUDA_LANES threads per scene as cooperative fibers."""
+
+
+def _use(device: str, monkeypatch: pytest.MonkeyPatch) -> str:
+    """The Torch device of ``device`` (a Torch device or CPU_BLOCKS), set up to run there."""
+    if device != CPU_BLOCKS:
+        return device
+    monkeypatch.setattr(wp.config, "enable_cpu_blocks", True)
+    assert lanes(wp.get_device("cpu")) == CUDA_LANES
+    return "cpu"
+
+
+@pytest.mark.parametrize("device", [d for d in torch_devices() if d != "cpu"] + [CPU_BLOCKS])
+def test_lanes_sharing_a_scene_give_what_one_thread_gives(device, monkeypatch):
+    """Sample points shared by a block's lanes sum in another order: the same rollout to rounding."""
+    alone = simulate(_scenes(), steps_per_frame=SPF, fps=FPS)
+    out = simulate(_scenes().map(lambda x: x.to(_use(device, monkeypatch))), steps_per_frame=SPF, fps=FPS)
+    for name, value in vars(alone).items():
+        assert torch.allclose(getattr(out, name).cpu(), value, rtol=1e-12, atol=1e-12), name
+
+
+@pytest.mark.parametrize("device", [*torch_devices(), CPU_BLOCKS])
+def test_rollout_adjoints_match_finite_differences(device, monkeypatch):
     torch.manual_seed(0)
-    inputs = _leaves(_scenes().map(lambda x: x.to(device)))
+    inputs = _leaves(_scenes().map(lambda x: x.to(_use(device, monkeypatch))))
     out = simulate(inputs, steps_per_frame=SPF, fps=FPS)
     weights = {name: torch.randn_like(value) for name, value in vars(out).items()}
     _projection(out, weights).backward()

@@ -323,6 +323,32 @@ def test_vertex_gradients_match_dense_reference(dense_case):
     assert rel < 3e-4, f"vertex gradients differ from the dense reference by {rel:.2e}"  # float32 kernels
 
 
+@pytest.mark.parametrize("threads", [3, raster.TILE], ids=["3 threads", "a thread per row"])
+def test_threads_sharing_a_tiles_rows_draw_what_one_thread_draws(dense_case, threads, monkeypatch):
+    # A GPU gives each row of a tile its own thread; a share of rows per thread must draw the
+    # same masks, profiles and gradients as one thread per tile (to float32 summation order).
+    c = dense_case
+    F, P = c["pixels"].shape[:2]
+    targets = (torch.rand(F, P, *c["image_size"], generator=torch.Generator().manual_seed(7)) > 0.5).float()
+
+    def draw() -> list[torch.Tensor]:
+        results = []
+        for along in (None, targets):
+            ours = c["pixels"].clone().requires_grad_(True)
+            outputs = _SoftSilhouettes.apply(ours, c["planes"], c["visible"], c["sides"], c["camera_vec"],
+                                             c["image_size"], c["sigma"], along, None if along is None else torch.arange(F))
+            outputs = [out for out in outputs if out is not None]
+            sum((out.double() * torch.rand_like(out.double(), generator=torch.Generator().manual_seed(8))).sum()
+                for out in outputs).backward()  # fmt: skip
+            results += [out.detach() for out in outputs] + [ours.grad]
+        return results
+
+    alone = draw()
+    monkeypatch.setattr(raster, "lanes", lambda device: threads)
+    for shared, one in zip(draw(), alone, strict=True):
+        torch.testing.assert_close(shared.double(), one.double(), rtol=1e-5, atol=1e-5)
+
+
 def test_cut_off_drops_at_most_the_sigmoid_tail(dense_case):
     # Against soft layers never cut off, the kernels' masks differ by at most the coverage
     # the cut-off drops, sigmoid(-CUTOFF) per layer (a pixel in two bands: twice that).
