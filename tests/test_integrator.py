@@ -105,11 +105,12 @@ def _use(device: str, monkeypatch: pytest.MonkeyPatch) -> str:
 
 @pytest.mark.parametrize("device", [d for d in torch_devices() if d != "cpu"] + [CPU_BLOCKS])
 def test_lanes_sharing_a_scene_give_what_one_thread_gives(device, monkeypatch):
-    """Sample points shared by a block's lanes sum in another order: the same rollout to rounding."""
+    """Sample points shared by a block's lanes sum in another order (and a GPU rounds its own
+    way): the same float64 rollout as one thread per scene on the CPU, to rounding."""
     alone = simulate(_scenes(), steps_per_frame=SPF, fps=FPS)
     out = simulate(_scenes().map(lambda x: x.to(_use(device, monkeypatch))), steps_per_frame=SPF, fps=FPS)
     for name, value in vars(alone).items():
-        assert torch.allclose(getattr(out, name).cpu(), value, rtol=1e-12, atol=1e-12), name
+        assert torch.allclose(getattr(out, name).cpu(), value, rtol=1e-9, atol=1e-9), name
 
 
 @pytest.mark.parametrize("device", [*torch_devices(), CPU_BLOCKS])
