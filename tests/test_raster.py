@@ -338,7 +338,8 @@ def test_threads_sharing_a_tiles_rows_draw_what_one_thread_draws(dense_case, thr
             outputs = _SoftSilhouettes.apply(ours, c["planes"], c["visible"], c["sides"], c["camera_vec"],
                                              c["image_size"], c["sigma"], along, None if along is None else torch.arange(F))
             outputs = [out for out in outputs if out is not None]
-            sum((out.double() * torch.rand_like(out.double(), generator=torch.Generator().manual_seed(8))).sum()
+            weights = torch.Generator().manual_seed(8)
+            sum((out.double() * torch.rand(out.shape, generator=weights, dtype=torch.float64)).sum()
                 for out in outputs).backward()  # fmt: skip
             results += [out.detach() for out in outputs] + [ours.grad]
         return results
