@@ -496,19 +496,15 @@ def _forward(
         for j in range(x0, x1):
             b = j - x0
             covered = whole | covering[b]
+            if covered == 0:
+                continue
+            kept.covered[f, i, j] = covered
+            v = _LAYERS()
             if covered & (covered - 1) == 0:
-                if covered != 0:
-                    kept.covered[f, i, j] = covered
-                    k = _lowest(covered)
-                    vk = float(1.0)
-                    if covering[b] != 0:
-                        vk = coverage[k, b]
-                    if profiled:
-                        row[k] += vk
-                        wp.atomic_add(out.cols, f, k, j, vk)
-                        overlap[k] += vk * targets.masks[t, k, i, j]
-                    else:
-                        mask_out[f, k, i, j] = vk
+                k = _lowest(covered)
+                v[k] = 1.0
+                if covering[b] != 0:
+                    v[k] = coverage[k, b]
             else:
                 c = _LAYERS()
                 sd = _LAYERS()
@@ -525,8 +521,6 @@ def _forward(
                         sd[k] = distance[k, b]
                         edge[k] = distance_edge[k, b]
                 z = _depths(intrinsics, o, f, covered, sd, edge, wp.vec2(float(j) + 0.5, v_row))
-                kept.covered[f, i, j] = covered
-                v = c
                 rest = covered
                 while rest != 0:
                     k = _lowest(rest)
@@ -534,16 +528,16 @@ def _forward(
                     v[k] = c[k] * _transmittance(c, z, covered, k, -1)
                     kept.coverage[f, k, i, j] = c[k]
                     kept.depth[f, k, i, j] = z[k]
-                rest = covered
-                while rest != 0:
-                    k = _lowest(rest)
-                    rest = rest & (rest - 1)
-                    if profiled:
-                        row[k] += v[k]
-                        wp.atomic_add(out.cols, f, k, j, v[k])
-                        overlap[k] += v[k] * targets.masks[t, k, i, j]
-                    else:
-                        mask_out[f, k, i, j] = v[k]
+            rest = covered
+            while rest != 0:
+                k = _lowest(rest)
+                rest = rest & (rest - 1)
+                if profiled:
+                    row[k] += v[k]
+                    wp.atomic_add(out.cols, f, k, j, v[k])
+                    overlap[k] += v[k] * targets.masks[t, k, i, j]
+                else:
+                    mask_out[f, k, i, j] = v[k]
         _keep_bands(kept, f, i, tx, partial, bands)
         if profiled:
             for k in range(o.count.shape[1]):
