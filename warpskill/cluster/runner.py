@@ -24,7 +24,6 @@ import logging
 import math
 import os
 import shutil
-import sys
 import tempfile
 import time
 import traceback
@@ -39,6 +38,7 @@ from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
 from warpskill.optimizer.options import OptimizeOptions
 from warpskill.optimizer.pipeline import optimize_many
+from warpskill.progress import on_terminal
 
 INSTALL_HINT = 'pip install -e ".[cluster]"'
 PID = "worker.pid"  #: the pid of the worker process running the demonstration (removed when it ends)
@@ -255,7 +255,7 @@ def _run(ray, task, groups, options: OptimizeOptions, postprocess: Postprocess |
     done = before
 
     shown: list = []
-    ticking = progress and sys.stderr.isatty()  # a terminal: the clock goes on; a log: one line per change
+    ticking = progress and on_terminal()  # a terminal: the clock goes on; a log: one line per change
 
     def show() -> None:
         counts = dict(done=done, failed=sum(not o.ok for o in outcomes.values()),

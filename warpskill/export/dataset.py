@@ -46,6 +46,7 @@ from warpskill.export.rollouts import (
     film_attempt,
     rollouts,
 )
+from warpskill.progress import progress_bar
 from warpskill.robot.skill_layout import skill_from
 
 __all__ = ["ATTEMPTS_PER_EPISODE", "EXPORT_VERSION", "PROVENANCE", "ExportError", "ExportRequest", "ExportSummary",
@@ -327,7 +328,7 @@ def _write(root: Path, sources: list[Source], request: ExportRequest, progress: 
                           for name in request.cameras}})
     summary, shown = ExportSummary(root, []), []
     try:
-        with tqdm(total=request.episodes * len(sources), unit="episode", disable=not progress) as bar:
+        with progress_bar(total=request.episodes * len(sources), unit="episode", enabled=progress) as bar:
             for i, source in enumerate(sources):
                 outcome, chosen = _judge_skill(source, request, request.seed + i)
                 for attempt_index, tried in chosen:

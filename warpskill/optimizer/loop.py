@@ -6,11 +6,11 @@ from typing import Callable, Sequence
 
 import numpy as np
 import torch
-from tqdm.auto import tqdm
 
 from warpskill.engine.warp_bridge import copy_into
 from warpskill.optimizer.checkpoint import Checkpoint
 from warpskill.optimizer.config import OptimizeConfig
+from warpskill.progress import progress_bar
 
 
 def minimise(
@@ -49,7 +49,7 @@ def minimise(
         The best loss each module reached.
     """
     run = _AdamRun(modules, learning_rate, config, store, label)
-    bar = tqdm(total=iterations, initial=run.start, desc=label, disable=not progress, leave=False)
+    bar = progress_bar(total=iterations, initial=run.start, desc=label, enabled=progress, leave=False)
     iteration = run.start
     switch, coarse_objective = coarse or (0, objective)
     while iteration < iterations and (active := run.live()):
