@@ -19,12 +19,53 @@ from . import OPTIMIZATION_LEVEL
 EMPTY_MASS = 1.0e-3
 """[px]: a mask with less total mass than this counts as empty."""
 
+_FORWARD_ONLY = {"optimization_level": OPTIMIZATION_LEVEL, "enable_backward": False}
+
+
+@functools.cache
+def records(dtype):
+    """The kernels' records for scalar type ``dtype``: (``Targets``, ``Profiles``, ``Moments``) Warp struct types.
+
+    ``Targets``: ``boxed`` (C,) int32 (1: the channel's targets are boxes: box dIoU), ``typical_mass`` (C,) [px],
+    the targets' ``mass`` (N, C) [px], ``centroid`` (N, C) (u, v) [px], ``box`` (N, C) and ``absent`` (N, C) int32
+    (1: the part is known to be out of sight: hidden-part loss; read only by the ``hidden`` loss kernel).
+    ``Profiles``: the rendered masks' row sums ``rows`` (N, C, H), column sums ``cols`` (N, C, W) and overlaps
+    ``overlap`` (N, C) [px] with the targets, or their gradients. ``Moments``: :func:`moments`'s mass (N, C) [px],
+    first moments (N, C) (u, v) [px^2], second moments about the centroid (N, C) (u, v) [px^3] and box (N, C)
+    (u0, v0, u1, v1) [px], or their gradients (no box).
+    """
+    vec2, vec4 = wp.types.vector(2, dtype), wp.types.vector(4, dtype)
+
+    @wp.struct
+    class Targets:
+        boxed: wp.array(dtype=int)
+        typical_mass: wp.array(dtype=dtype)
+        mass: wp.array2d(dtype=dtype)
+        centroid: wp.array2d(dtype=vec2)
+        box: wp.array2d(dtype=vec4)
+        absent: wp.array2d(dtype=int)
+
+    @wp.struct
+    class Profiles:
+        rows: wp.array3d(dtype=dtype)
+        cols: wp.array3d(dtype=dtype)
+        overlap: wp.array2d(dtype=dtype)
+
+    @wp.struct
+    class Moments:
+        mass: wp.array2d(dtype=dtype)
+        first: wp.array2d(dtype=vec2)
+        second: wp.array2d(dtype=vec2)
+        box: wp.array2d(dtype=vec4)
+
+    return Targets, Profiles, Moments
+
 
 @functools.cache
 def _kernels(dtype):
-    """The moment, loss and gradient-spreading kernels for scalar type ``dtype``."""
+    """The moment and gradient-spreading kernels for scalar type ``dtype``."""
     vec2, vec4 = wp.types.vector(2, dtype), wp.types.vector(4, dtype)
-    options = {"optimization_level": OPTIMIZATION_LEVEL, "enable_backward": False}
+    _, Profiles, Moments = records(dtype)
 
     @wp.func
     def first_and_box(profile: wp.array3d(dtype=dtype), n: int, c: int) -> vec4:
@@ -53,25 +94,52 @@ def _kernels(dtype):
             total += profile[n, c, i] * d * d
         return total
 
-    @wp.kernel(module="unique", module_options=options)
+    @wp.kernel(module="unique", module_options=_FORWARD_ONLY)
     def _moments(
         # Data in:
-        rows_in: wp.array3d(dtype=dtype),
-        cols_in: wp.array3d(dtype=dtype),
+        profile_in: Profiles,
         # Data out:
-        mass_out: wp.array2d(dtype=dtype),
-        first_out: wp.array2d(dtype=vec2),
-        second_out: wp.array2d(dtype=vec2),
-        box_out: wp.array2d(dtype=vec4),
+        moments_out: Moments,
     ):
         n, c = wp.tid()
-        v = first_and_box(rows_in, n, c)
-        u = first_and_box(cols_in, n, c)
+        v = first_and_box(profile_in.rows, n, c)
+        u = first_and_box(profile_in.cols, n, c)
         denominator = wp.max(v[0], dtype(EMPTY_MASS))
-        mass_out[n, c] = v[0]
-        first_out[n, c] = vec2(u[1], v[1])
-        second_out[n, c] = vec2(second(cols_in, n, c, u[1] / denominator), second(rows_in, n, c, v[1] / denominator))
-        box_out[n, c] = vec4(u[2], v[2], u[3], v[3])
+        moments_out.mass[n, c] = v[0]
+        moments_out.first[n, c] = vec2(u[1], v[1])
+        moments_out.second[n, c] = vec2(second(profile_in.cols, n, c, u[1] / denominator),
+                                        second(profile_in.rows, n, c, v[1] / denominator))
+        moments_out.box[n, c] = vec4(u[2], v[2], u[3], v[3])
+
+    @wp.kernel(module="unique", module_options=_FORWARD_ONLY)
+    def _spread(
+        # Data in:
+        moments_in: Moments,
+        moments_grad_in: Moments,
+        # Data out:
+        profile_grad_out: Profiles,
+    ):
+        n, c = wp.tid()
+        centroid = moments_in.first[n, c] / wp.max(moments_in.mass[n, c], dtype(EMPTY_MASS))
+        g1 = moments_grad_in.first[n, c]
+        g2 = moments_grad_in.second[n, c]
+        for i in range(profile_grad_out.rows.shape[2]):
+            x = dtype(i) + dtype(0.5)
+            d = x - centroid[1]
+            profile_grad_out.rows[n, c, i] = moments_grad_in.mass[n, c] + g1[1] * x + g2[1] * d * d
+        for j in range(profile_grad_out.cols.shape[2]):
+            x = dtype(j) + dtype(0.5)
+            d = x - centroid[0]
+            profile_grad_out.cols[n, c, j] = g1[0] * x + g2[0] * d * d
+
+    return _moments, _spread
+
+
+@functools.cache
+def _loss_kernel(dtype, hidden: bool):
+    """The loss kernel for scalar type ``dtype``, with the hidden-part loss where ``targets.absent`` if ``hidden``."""
+    vec2, vec4 = wp.types.vector(2, dtype), wp.types.vector(4, dtype)
+    Targets, Profiles, Moments = records(dtype)
 
     @wp.func
     def diou(mass: dtype, centroid: vec2, overlap: dtype, box: vec4, target_mass: dtype, target_centroid: vec2,
@@ -110,102 +178,65 @@ def _kernels(dtype):
 
     @wp.kernel(module="unique", module_options={"optimization_level": OPTIMIZATION_LEVEL})
     def _losses(
-        # Model:
-        boxed: wp.array(dtype=int),
-        typical_mass: wp.array(dtype=dtype),
-        # Data in (targets):
-        target_mass_in: wp.array2d(dtype=dtype),
-        target_centroid_in: wp.array2d(dtype=vec2),
-        target_box_in: wp.array2d(dtype=vec4),
-        absent_in: wp.array2d(dtype=int),
-        # Data in (rendered):
-        overlap_in: wp.array2d(dtype=dtype),
-        mass_in: wp.array2d(dtype=dtype),
-        first_in: wp.array2d(dtype=vec2),
-        second_in: wp.array2d(dtype=vec2),
-        box_in: wp.array2d(dtype=vec4),
+        # Model and targets:
+        targets: Targets,
+        # Data in:
+        profile_in: Profiles,
+        moments_in: Moments,
         # Data out:
         loss_out: wp.array2d(dtype=dtype),
     ):
         n, c = wp.tid()
-        mass = mass_in[n, c]
+        mass = moments_in.mass[n, c]
         denominator = wp.max(mass, dtype(EMPTY_MASS))
-        centroid = first_in[n, c] / denominator
+        centroid = moments_in.first[n, c] / denominator
         loss = dtype(0.0)
         absent = int(0)
-        if absent_in.shape[0] > 0:
-            absent = absent_in[n, c]
+        if wp.static(hidden):
+            absent = targets.absent[n, c]
         if absent != 0:
-            loss = wp.min(mass / wp.max(typical_mass[c], dtype(1.0)), dtype(1.0))
-        elif target_mass_in[n, c] > dtype(EMPTY_MASS):
+            loss = wp.min(mass / wp.max(targets.typical_mass[c], dtype(1.0)), dtype(1.0))
+        elif targets.mass[n, c] > dtype(EMPTY_MASS):
             if mass <= dtype(EMPTY_MASS):
                 loss = dtype(2.0)
-            elif boxed[c] != 0:
-                loss = box_diou(denominator, centroid, second_in[n, c], target_box_in[n, c])
+            elif targets.boxed[c] != 0:
+                loss = box_diou(denominator, centroid, moments_in.second[n, c], targets.box[n, c])
             else:
-                loss = diou(mass, centroid, overlap_in[n, c], box_in[n, c], target_mass_in[n, c],
-                            target_centroid_in[n, c], target_box_in[n, c])
+                loss = diou(mass, centroid, profile_in.overlap[n, c], moments_in.box[n, c], targets.mass[n, c],
+                            targets.centroid[n, c], targets.box[n, c])
         loss_out[n, c] = loss
 
-    @wp.kernel(module="unique", module_options=options)
-    def _spread(
-        # Data in:
-        mass_in: wp.array2d(dtype=dtype),
-        first_in: wp.array2d(dtype=vec2),
-        mass_grad_in: wp.array2d(dtype=dtype),
-        first_grad_in: wp.array2d(dtype=vec2),
-        second_grad_in: wp.array2d(dtype=vec2),
-        # Data out:
-        rows_grad_out: wp.array3d(dtype=dtype),
-        cols_grad_out: wp.array3d(dtype=dtype),
-    ):
-        n, c = wp.tid()
-        centroid = first_in[n, c] / wp.max(mass_in[n, c], dtype(EMPTY_MASS))
-        g1 = first_grad_in[n, c]
-        g2 = second_grad_in[n, c]
-        for i in range(rows_grad_out.shape[2]):
-            x = dtype(i) + dtype(0.5)
-            d = x - centroid[1]
-            rows_grad_out[n, c, i] = mass_grad_in[n, c] + g1[1] * x + g2[1] * d * d
-        for j in range(cols_grad_out.shape[2]):
-            x = dtype(j) + dtype(0.5)
-            d = x - centroid[0]
-            cols_grad_out[n, c, j] = g1[0] * x + g2[0] * d * d
-
-    return _moments, _losses, _spread
+    return _losses
 
 
-def moments(rows: wp.array, cols: wp.array, mass: wp.array, first: wp.array, second: wp.array, box: wp.array) -> None:
-    """Mass (N, C) [px], first moments (N, C) (u, v) [px^2], second moments about the centroid (N, C) (u, v)
-    [px^3] and box (N, C) (u0, v0, u1, v1) [px] (inverted, (+inf, +inf, -inf, -inf), where no row or column holds
-    half a pixel) of masks of row sums ``rows`` (N, C, H) and column sums ``cols`` (N, C, W)."""
-    kernel = _kernels(rows.dtype)[0]
-    wp.launch(kernel, dim=mass.shape, inputs=[rows, cols], outputs=[mass, first, second, box], device=mass.device)
+def moments(profile, moments_out) -> None:
+    """The ``Moments`` (:func:`records`) of the masks whose ``Profiles`` are ``profile`` into ``moments_out``; the
+    box inverted, (+inf, +inf, -inf, -inf), where no row or column holds half a pixel."""
+    mass = moments_out.mass
+    wp.launch(_kernels(mass.dtype)[0], dim=mass.shape, inputs=[profile], outputs=[moments_out], device=mass.device)
 
 
-def losses(model: list, targets: list, rendered: list, loss: wp.array, rendered_grads: list | None = None,
-           loss_grad: wp.array | None = None) -> None:
-    """The loss (N, C) per mask into ``loss``, or with ``loss_grad`` its adjoint, adding dL/d``rendered`` into
-    ``rendered_grads``.
+def losses(targets, hidden: bool, profile, moments_in, loss: wp.array, *, loss_grad: wp.array | None = None) -> None:
+    """The loss (N, C) per mask into ``loss``, or with ``loss_grad`` its adjoint, adding dL/d(overlap) and
+    dL/d(mass, first, second) into the gradients of those arrays of ``profile`` and ``moments_in``.
 
-    ``rendered_grads`` are those of all ``rendered`` but the box.
-
-    ``model``: boxed (C,) int (1: the channel's targets are boxes: box dIoU) and the channels' typical masses
-    (C,) [px]. ``targets``: their mass (N, C), centroid (N, C) (u, v) [px], box (N, C) and absent (N, C) int (1:
-    the part is known to be out of sight: hidden-part loss), or (0, 0) for none. ``rendered``: the overlaps (N, C)
-    [px] with the targets, then :func:`moments`'s outputs. Where the target is empty and the part not absent the
+    ``targets``, ``profile``, ``moments_in``: the :func:`records` of the targets and of the rendered masks; with
+    ``hidden`` the hidden-part loss where ``targets.absent``. Where the target is empty and the part not absent the
     loss is 0; where only the rendering is empty, 2.
     """
-    kernel = _kernels(loss.dtype)[1]
-    adjoint = loss_grad is not None
-    wp.launch(kernel, dim=loss.shape, inputs=[*model, *targets, *rendered], outputs=[loss], device=loss.device,
-              adj_inputs=[None] * (len(model) + len(targets)) + [*rendered_grads, None] if adjoint else [],
-              adj_outputs=[loss_grad] if adjoint else [], adjoint=adjoint)
+    kernel = _loss_kernel(loss.dtype, hidden)
+    inputs = [targets, profile, moments_in]
+    if loss_grad is None:
+        wp.launch(kernel, dim=loss.shape, inputs=inputs, outputs=[loss], device=loss.device)
+        return
+    no_adjoint = [type(record)() for record in inputs]  # a struct's adjoint goes to its arrays' gradients
+    wp.launch(kernel, dim=loss.shape, inputs=inputs, outputs=[loss], device=loss.device, adj_inputs=no_adjoint,
+              adj_outputs=[loss_grad], adjoint=True)
 
 
-def spread(mass: wp.array, first: wp.array, grads: list, rows_grad: wp.array, cols_grad: wp.array) -> None:
-    """dL/d(row sums) (N, C, H) and dL/d(column sums) (N, C, W) into ``rows_grad``, ``cols_grad`` from the
-    gradients ``grads`` of the mass, first and second moments (:func:`losses`'s adjoint)."""
-    kernel = _kernels(mass.dtype)[2]
-    wp.launch(kernel, dim=mass.shape, inputs=[mass, first, *grads], outputs=[rows_grad, cols_grad],
+def spread(moments_in, moments_grad, profile_grad) -> None:
+    """dL/d(row sums) (N, C, H) and dL/d(column sums) (N, C, W) into ``profile_grad`` from the gradients
+    ``moments_grad`` of the mass, first and second moments ``moments_in`` (:func:`losses`'s adjoint)."""
+    mass = moments_in.mass
+    wp.launch(_kernels(mass.dtype)[1], dim=mass.shape, inputs=[moments_in, moments_grad], outputs=[profile_grad],
               device=mass.device)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import torch
 import warp as wp
 
-from warpskill.engine.warp_bridge import WorkspacePool, as_warp, warp_scope
+from warpskill.engine.warp_bridge import WorkspacePool, as_warp, copy_into, make_struct, warp_scope
 from warpskill.kernels import mask_losses
 from warpskill.kernels.mask_losses import EMPTY_MASS
 
@@ -16,14 +16,19 @@ __all__ = ["EMPTY_MASS", "LossTargets", "profile_losses"]
 
 class LossTargets:
     """What the losses read of the target masks (N, C, H, W), as tensors of one dtype and device with their Warp
-    views (made once): ``boxed`` (C,) int32, ``typical_mass`` (C,) [px], ``mass`` (N, C) [px], ``centroid``
-    (N, C, 2) (u, v) [px], ``box`` (N, C, 4) (u0, v0, u1, v1) [px] and ``absent`` (N, C) int32 ((0, 0): none)."""
+    record ``struct`` (:func:`warpskill.kernels.mask_losses.records`, made once): ``boxed`` (C,) int32,
+    ``typical_mass`` (C,) [px], ``mass`` (N, C) [px], ``centroid`` (N, C, 2) (u, v) [px], ``box`` (N, C, 4)
+    (u0, v0, u1, v1) [px] and ``absent`` (N, C) int32, or (0, 0) for none: ``hidden`` is whether the hidden-part
+    loss applies."""
 
     def __init__(self, boxed, typical_mass, mass, centroid, box, absent):
+        Targets, _, _ = mask_losses.records(wp.dtype_from_torch(mass.dtype))
         vec2, vec4 = (wp.types.vector(n, wp.dtype_from_torch(mass.dtype)) for n in (2, 4))
         self.tensors = [x.contiguous() for x in (boxed, typical_mass, mass, centroid, box, absent)]
+        self.hidden = absent.shape[0] > 0
         with warp_scope(mass.device):
-            self.views = [as_warp(x, t) for x, t in zip(self.tensors, (None, None, None, vec2, vec4, None))]
+            views = [as_warp(x, t) for x, t in zip(self.tensors, (None, None, None, vec2, vec4, None))]
+            self.struct = make_struct(Targets, **dict(zip(Targets.vars, views)))
 
 
 def profile_losses(rows: torch.Tensor, cols: torch.Tensor, overlap: torch.Tensor, targets: LossTargets) -> torch.Tensor:
@@ -43,11 +48,10 @@ class _ProfileLosses(torch.autograd.Function):
         wp.init()  # no-op once Warp is up
         N, C, H = rows.shape
         work = _POOL.take((N, C, H, cols.shape[2], rows.dtype, rows.device))
-        for buffer, tensor in zip((work.rows, work.cols, work.overlap), (rows, cols, overlap)):
-            buffer.copy_(tensor.detach())
+        copy_into((work.rows, work.cols, work.overlap), (rows, cols, overlap))
         with warp_scope(rows.device):
-            mask_losses.moments(*work.views["profile"], *work.views["moments"])
-            mask_losses.losses(targets.views[:2], targets.views[2:], work.views["rendered"], work.views["loss"])
+            mask_losses.moments(work.profile, work.moments)
+            mask_losses.losses(targets.struct, targets.hidden, work.profile, work.moments, work.loss_view)
         if any(ctx.needs_input_grad[:3]):
             ctx.work, ctx.targets = work, targets
         else:
@@ -58,45 +62,47 @@ class _ProfileLosses(torch.autograd.Function):
     def backward(ctx, loss_grad):
         work, targets = ctx.work, ctx.targets
         work.loss_grad.copy_(loss_grad)
-        for grad in work.rendered_grads:
-            grad.zero_()
+        torch._foreach_zero_(work.accumulated_grads)
         with warp_scope(loss_grad.device):
-            mask_losses.losses(targets.views[:2], targets.views[2:], work.views["rendered"], work.views["loss"],
-                               work.views["rendered_grads"], work.views["loss_grad"])
-            mask_losses.spread(*work.views["rendered"][1:3], work.views["rendered_grads"][1:4],
-                               *work.views["profile_grads"])
-        grads = (work.rows_grad.clone(), work.cols_grad.clone(), work.rendered_grads[0].clone())
+            mask_losses.losses(targets.struct, targets.hidden, work.profile, work.moments, work.loss_view,
+                               loss_grad=work.loss_grad_view)
+            mask_losses.spread(work.moments, work.moments_grad, work.profile_grad)
+        grads = (work.rows_grad.clone(), work.cols_grad.clone(), work.overlap_grad.clone())
         _POOL.give_back(work.key, work)  # ctx keeps it: a second backward pass (retain_graph) reads it again
         return *grads, None
 
 
 class _Workspace:
-    """The buffers of :class:`_ProfileLosses` for one shape, allocated once, with their Warp views (made once):
-    the profile ``rows`` (N, C, H), ``cols`` (N, C, W), ``overlap`` (N, C); the moments mass (N, C), first and
-    second (N, C, 2), box (N, C, 4); the ``loss`` (N, C); and the gradients of all but the box."""
+    """The buffers of :class:`_ProfileLosses` for one shape, allocated once, with the kernels' records over them
+    (:func:`warpskill.kernels.mask_losses.records`, made once): the ``profile`` of the rendered masks (``rows``
+    (N, C, H), ``cols`` (N, C, W), ``overlap`` (N, C)) and the ``moments`` (mass (N, C), first and second
+    (N, C, 2), box (N, C, 4)), their arrays' gradients the memory of ``accumulated_grads`` (overlap, mass, first,
+    second: what the loss kernel's adjoint adds into; ``moments_grad`` the moments' over them); the gradients of the
+    row and column sums ``profile_grad``
+    (:func:`~warpskill.kernels.mask_losses.spread`'s output); the ``loss`` (N, C) and its gradient."""
 
     def __init__(self, key: tuple):
         N, C, H, W, dtype, device = key
         like = {"dtype": dtype, "device": device}
+        _, Profiles, Moments = mask_losses.records(wp.dtype_from_torch(dtype))
+        vec2, vec4 = (wp.types.vector(n, wp.dtype_from_torch(dtype)) for n in (2, 4))
         self.key = key
         self.rows, self.cols, self.overlap = (torch.zeros(shape, **like) for shape in ((N, C, H), (N, C, W), (N, C)))
         self.rows_grad, self.cols_grad = torch.zeros_like(self.rows), torch.zeros_like(self.cols)
-        shapes = ((N, C), (N, C), (N, C, 2), (N, C, 2))  # overlap, mass, first, second
-        moments = [torch.zeros(shape, **like) for shape in shapes[1:]] + [torch.zeros(N, C, 4, **like)]
-        self.rendered_grads = [torch.zeros(shape, **like) for shape in shapes]
+        moments = [torch.zeros(N, C, *shape, **like) for shape in ((), (2,), (2,), (4,))]
+        self.overlap_grad, *moment_grads = (torch.zeros_like(x) for x in (self.overlap, *moments[:3]))
+        self.accumulated_grads = [self.overlap_grad, *moment_grads]
         self.loss, self.loss_grad = torch.zeros(N, C, **like), torch.zeros(N, C, **like)
-        vec2, vec4 = (wp.types.vector(n, wp.dtype_from_torch(dtype)) for n in (2, 4))
         with warp_scope(device):
-            moment_views = [as_warp(x, t) for x, t in zip(moments, (None, vec2, vec2, vec4))]
-            self.views = {
-                "profile": [as_warp(self.rows), as_warp(self.cols)],
-                "moments": moment_views,
-                "rendered": [as_warp(self.overlap), *moment_views],
-                "rendered_grads": [as_warp(x, t) for x, t in zip(self.rendered_grads, (None, None, vec2, vec2))],
-                "profile_grads": [as_warp(self.rows_grad), as_warp(self.cols_grad)],
-                "loss": as_warp(self.loss),
-                "loss_grad": as_warp(self.loss_grad),
-            }
+            self.profile = make_struct(Profiles, rows=as_warp(self.rows), cols=as_warp(self.cols),
+                                       overlap=as_warp(self.overlap, grad=self.overlap_grad))
+            self.profile_grad = make_struct(Profiles, rows=as_warp(self.rows_grad), cols=as_warp(self.cols_grad))
+            self.moments = make_struct(Moments, **{name: as_warp(x, t, grad=g) for name, x, t, g in
+                                                   zip(Moments.vars, moments, (None, vec2, vec2, vec4),
+                                                       (*moment_grads, None))})
+            self.moments_grad = make_struct(Moments, **{name: getattr(self.moments, name).grad
+                                                        for name in ("mass", "first", "second")})
+            self.loss_view, self.loss_grad_view = as_warp(self.loss), as_warp(self.loss_grad)
 
 
 _POOL = WorkspacePool(_Workspace)

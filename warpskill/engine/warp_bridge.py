@@ -17,9 +17,9 @@ configure_warp_log()  # quiet unless asked for (warpskill --verbose), before any
 _DENORMAL = 1e-40  # a float32 denormal
 
 
-def as_warp(tensor: torch.Tensor, dtype=None, requires_grad: bool = False) -> wp.array:
+def as_warp(tensor: torch.Tensor, dtype=None, requires_grad: bool = False, grad: torch.Tensor | None = None) -> wp.array:
     """Zero-copy Warp view of ``tensor`` (detached), with a Warp-owned gradient buffer if
-    ``requires_grad``.
+    ``requires_grad``, or with the view of ``grad`` as its gradient.
 
     A non-contiguous tensor is copied first, so only contiguous ones may be written through
     the view. An empty tensor gives a fresh empty array (Torch may give empty tensors zero
@@ -29,14 +29,28 @@ def as_warp(tensor: torch.Tensor, dtype=None, requires_grad: bool = False) -> wp
         tensor: the Torch tensor; its trailing dimensions hold ``dtype``'s vector or matrix.
         dtype: Warp value type (e.g. ``wp.vec3``); None: the scalar type of ``tensor``.
         requires_grad: give the array a gradient buffer.
+        grad: a contiguous tensor of ``tensor``'s shape and dtype, the gradient's memory (what a kernel's
+            adjoint adds into through a Warp struct: its arrays' own gradients).
     """
     if tensor.numel() == 0:
         if dtype is None:
             dtype = wp.dtype_from_torch(tensor.dtype)
         shape = tensor.shape[: tensor.ndim - len(getattr(dtype, "_shape_", ()))]
         device = wp.device_from_torch(tensor.device)
-        return wp.zeros(shape, dtype=dtype, device=device, requires_grad=requires_grad)
-    return wp.from_torch(tensor.detach().contiguous(), dtype=dtype, requires_grad=requires_grad)
+        array = wp.zeros(shape, dtype=dtype, device=device, requires_grad=requires_grad)
+    else:
+        array = wp.from_torch(tensor.detach().contiguous(), dtype=dtype, requires_grad=requires_grad)
+    if grad is not None:
+        array.grad = as_warp(grad, dtype)
+    return array
+
+
+def make_struct(kind, **fields):
+    """An instance of the Warp struct type ``kind`` with ``fields`` set (the others null or zero)."""
+    record = kind()
+    for name, value in fields.items():
+        setattr(record, name, value)
+    return record
 
 
 @torch.no_grad()
