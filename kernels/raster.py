@@ -30,15 +30,15 @@ vertex), which give the gradients of the edge's two vertices in closed form, add
 per (thread, primitive, edge). Depth order carries no gradient. All kernels are forward-only.
 """
 
-from __future__ import annotations
-
+import functools
 from typing import Any
 
 import warp as wp
 
 from . import OPTIMIZATION_LEVEL
 
-wp.set_module_options({"enable_backward": False, "optimization_level": OPTIMIZATION_LEVEL})
+_OPTIONS = {"enable_backward": False, "optimization_level": OPTIMIZATION_LEVEL}
+wp.set_module_options(_OPTIONS)
 
 TILE = 16
 """Tile edge [px]."""
@@ -113,18 +113,13 @@ class Layers:
 
 
 @wp.struct
-class Targets:
-    """The target masks ``masks`` (T, P, H, W) and each rendered frame's index into them ``frame`` (F,)."""
+class Profiles:
+    """What the mask losses read of the visible masks v against the target masks t (T, P, H, W) ``target``, read
+    at each rendered frame's index ``frame`` (F,) into them: row sums ``rows`` (F, P, H), column sums ``cols``
+    (F, P, W) and overlaps sum_ij v t ``overlap`` (F, P); or the gradients of those sums (with the same targets)."""
 
     frame: wp.array(dtype=int)
-    masks: wp.array4d(dtype=float)
-
-
-@wp.struct
-class Profiles:
-    """What the mask losses read of the visible masks v against the targets, or its gradient: row
-    sums ``rows`` (F, P, H), column sums ``cols`` (F, P, W) and overlaps sum_ij v t ``overlap`` (F, P)."""
-
+    target: wp.array4d(dtype=float)
     rows: wp.array3d(dtype=float)
     cols: wp.array3d(dtype=float)
     overlap: wp.array2d(dtype=float)
@@ -425,147 +420,17 @@ def _keep_bands(kept: Layers, f: int, i: int, tx: int, partial: int, bands: _EDG
         kept.band[f, k, i, tx] = bands[k]
 
 
-@wp.kernel
-def _forward(
-    # Model:
-    intrinsics: wp.vec4,
-    sigma: float,
-    profiled: int,
-    lanes: int,
-    # Data in:
-    o: Outlines,
-    targets: Targets,
-    # Data out:
-    mask_out: wp.array4d(dtype=float),
-    kept: Layers,
-    out: Profiles,
-):
-    f, ty, tx, lane = wp.tid()
-    H, W = kept.covered.shape[1], kept.covered.shape[2]
-    x0, y0 = tx * TILE, ty * TILE
-    x1 = wp.min(x0 + TILE, W)
-    lo, hi = _tile_corners(x0, y0, H, W)
-    limit = CUTOFF * sigma
-    partial, full, edges = _tile_classes(o, f, lo, hi, limit)
-    if lane == 0:
-        kept.tiles[f, ty, tx] = partial
-    if partial == 0 and full == 0:
-        return
-    t = int(0)
-    if profiled:
-        t = targets.frame[f]
-    overlap = _LAYERS()
-    coverage = _ROW_VALUES()  # per partial primitive along the row, where it covers a pixel
-    distance = _ROW_VALUES()
-    distance_edge = _ROW_EDGES()
-    for i in range(y0 + lane, wp.min(y0 + TILE, H), lanes):
-        v_row = float(i) + 0.5
-        row = _LAYERS()
-        bands = _EDGES()
-        row_partial, row_full = _row_classes(o, f, partial, edges, wp.vec2(lo[0], v_row), wp.vec2(hi[0], v_row), limit)
-        if row_partial == 0 and row_full == 0 and full == 0:
-            _keep_bands(kept, f, i, tx, partial, bands)
-            continue
-        # The partial primitives one after another along the row: coverage, distance and edge
-        # where it covers a pixel (in the soft band, coverage and edge kept for the backward pass).
-        covering = _ROW_BITS()
-        rest = row_partial
-        while rest != 0:
-            k = _lowest(rest)
-            rest = rest & (rest - 1)
-            bound = o.bound[f, k]
-            for j in range(x0, x1):
-                u = float(j) + 0.5
-                if _inside(bound, u, v_row):
-                    d, e = _signed_distance(o, f, k, edges[k], wp.vec2(u, v_row), limit)
-                    if d <= limit:
-                        b = j - x0
-                        covering[b] = covering[b] | (1 << k)
-                        ck = float(1.0)
-                        if d >= -limit:
-                            ck = 1.0 / (1.0 + wp.exp(d / sigma))
-                            bands[k] = bands[k] | (1 << b)
-                            kept.band_coverage[f, k, i, j] = ck
-                            kept.edge[f, k, i, j] = e
-                        coverage[k, b] = ck
-                        distance[k, b] = d
-                        distance_edge[k, b] = e
-        # Then pixel by pixel: one layer shows as it covers; two or more are sorted by depth
-        # (written out in the kernel: functions taking the row's buffers would copy them).
-        whole = full | row_full
-        for j in range(x0, x1):
-            b = j - x0
-            covered = whole | covering[b]
-            if covered == 0:
-                continue
-            kept.covered[f, i, j] = covered
-            v = _LAYERS()
-            if covered & (covered - 1) == 0:
-                k = _lowest(covered)
-                v[k] = 1.0
-                if covering[b] != 0:
-                    v[k] = coverage[k, b]
-            else:
-                c = _LAYERS()
-                sd = _LAYERS()
-                edge = _EDGES()
-                rest = covered
-                while rest != 0:
-                    k = _lowest(rest)
-                    rest = rest & (rest - 1)
-                    if (whole >> k) & 1:
-                        c[k] = 1.0
-                        sd[k] = -1.0e30
-                    else:
-                        c[k] = coverage[k, b]
-                        sd[k] = distance[k, b]
-                        edge[k] = distance_edge[k, b]
-                z = _depths(intrinsics, o, f, covered, sd, edge, wp.vec2(float(j) + 0.5, v_row))
-                rest = covered
-                while rest != 0:
-                    k = _lowest(rest)
-                    rest = rest & (rest - 1)
-                    v[k] = c[k] * _transmittance(c, z, covered, k, -1)
-                    kept.coverage[f, k, i, j] = c[k]
-                    kept.depth[f, k, i, j] = z[k]
-            rest = covered
-            while rest != 0:
-                k = _lowest(rest)
-                rest = rest & (rest - 1)
-                if profiled:
-                    row[k] += v[k]
-                    wp.atomic_add(out.cols, f, k, j, v[k])
-                    overlap[k] += v[k] * targets.masks[t, k, i, j]
-                else:
-                    mask_out[f, k, i, j] = v[k]
-        _keep_bands(kept, f, i, tx, partial, bands)
-        if profiled:
-            for k in range(o.count.shape[1]):
-                if row[k] != 0.0:
-                    wp.atomic_add(out.rows, f, k, i, row[k])
-    if profiled:
-        for k in range(o.count.shape[1]):
-            if overlap[k] != 0.0:
-                wp.atomic_add(out.overlap, f, k, overlap[k])
+@wp.func
+def _mask_grad(mask_grad_in: wp.array4d(dtype=float), t: int, f: int, k: int, i: int, j: int) -> float:
+    """dL/dv of the visible mask of primitive k at pixel (i, j) of frame f, given per pixel."""
+    return mask_grad_in[f, k, i, j]
 
 
 @wp.func
-def _mask_grad(
-    profiled: int,
-    mask_grad_in: wp.array4d(dtype=float),
-    targets: Targets,
-    grads: Profiles,
-    t: int,
-    f: int,
-    k: int,
-    i: int,
-    j: int,
-) -> float:
-    """dL/dv of the visible mask of primitive k at pixel (i, j) of frame f: given per pixel, or
-    from the gradients of the profiles (row sum i, column sum j, overlap with target frame t)."""
-    if profiled == 0:
-        return mask_grad_in[f, k, i, j]
-    return grads.rows[f, k, i] + grads.cols[f, k, j] + grads.overlap[f, k] * targets.masks[t, k, i, j]
+def _mask_grad(grads: Profiles, t: int, f: int, k: int, i: int, j: int) -> float:
+    """dL/dv of the visible mask of primitive k at pixel (i, j) of frame f from the gradients of the profiles (row
+    sum i, column sum j, overlap with target frame t)."""
+    return grads.rows[f, k, i] + grads.cols[f, k, j] + grads.overlap[f, k] * grads.target[t, k, i, j]
 
 
 @wp.func
@@ -582,76 +447,201 @@ def _edge_vertex_grads(g: float, m: wp.vec2, e: wp.vec2) -> tuple[wp.vec2, wp.ve
     return -grad_b - g * normal, grad_b
 
 
-@wp.kernel
-def _backward(
-    # Model:
-    sigma: float,
-    profiled: int,
-    lanes: int,
-    # Data in:
-    o: Outlines,
-    kept: Layers,
-    targets: Targets,
-    mask_grad_in: wp.array4d(dtype=float),
-    grads: Profiles,
-    # Data out:
-    vertex_grad_out: wp.array3d(dtype=wp.vec2),
-):
-    f, k, tile, lane = wp.tid()
-    ty, tx = tile // kept.tiles.shape[2], tile % kept.tiles.shape[2]
-    if (kept.tiles[f, ty, tx] >> k) & 1 == 0:  # coverage is constant (0 or 1) over the tile
-        return
-    H = kept.covered.shape[1]
-    x0, y0 = tx * TILE, ty * TILE
-    bit = 1 << k
-    t = int(0)
-    if profiled:
-        t = targets.frame[f]
-    count = o.count[f, k]
-    origin = wp.vec2(float(x0 + TILE // 2), float(y0 + TILE // 2))  # moments about the tile centre
-    acc = _MOMENTS()
-    for i in range(y0 + lane, wp.min(y0 + TILE, H), lanes):
-        band = kept.band[f, k, i, tx]  # where the forward pass drew k's soft band in this row
-        while band != 0:
-            j = x0 + _lowest(band)
-            band = band & (band - 1)
-            p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
-            ek = kept.edge[f, k, i, j]
-            ck = kept.band_coverage[f, k, i, j]
-            dc = _mask_grad(profiled, mask_grad_in, targets, grads, t, f, k, i, j)
-            covered = kept.covered[f, i, j]  # the layers at the pixel, k among them
-            others = covered - (covered & bit)
-            if others != 0:
-                c = _LAYERS()
-                z = _LAYERS()
+@functools.cache
+def _kernels(profiled: bool):
+    """The forward and backward raster kernels drawing the visible masks (F, P, H, W), or with ``profiled``
+    only their :class:`Profiles` (and taking their gradients)."""
+    Drawn = Profiles if profiled else wp.array4d(dtype=float)
+
+    @wp.kernel(module="unique", module_options=_OPTIONS)
+    def _forward(
+        # Model:
+        intrinsics: wp.vec4,
+        sigma: float,
+        lanes: int,
+        # Data in:
+        o: Outlines,
+        # Data out:
+        kept: Layers,
+        out: Drawn,
+    ):
+        f, ty, tx, lane = wp.tid()
+        H, W = kept.covered.shape[1], kept.covered.shape[2]
+        x0, y0 = tx * TILE, ty * TILE
+        x1 = wp.min(x0 + TILE, W)
+        lo, hi = _tile_corners(x0, y0, H, W)
+        limit = CUTOFF * sigma
+        partial, full, edges = _tile_classes(o, f, lo, hi, limit)
+        if lane == 0:
+            kept.tiles[f, ty, tx] = partial
+        if partial == 0 and full == 0:
+            return
+        t = int(0)
+        if wp.static(profiled):
+            t = out.frame[f]
+        overlap = _LAYERS()
+        coverage = _ROW_VALUES()  # per partial primitive along the row, where it covers a pixel
+        distance = _ROW_VALUES()
+        distance_edge = _ROW_EDGES()
+        for i in range(y0 + lane, wp.min(y0 + TILE, H), lanes):
+            v_row = float(i) + 0.5
+            row = _LAYERS()
+            bands = _EDGES()
+            row_partial, row_full = _row_classes(o, f, partial, edges, wp.vec2(lo[0], v_row), wp.vec2(hi[0], v_row), limit)
+            if row_partial == 0 and row_full == 0 and full == 0:
+                _keep_bands(kept, f, i, tx, partial, bands)
+                continue
+            # The partial primitives one after another along the row: coverage, distance and edge
+            # where it covers a pixel (in the soft band, coverage and edge kept for the backward pass).
+            covering = _ROW_BITS()
+            rest = row_partial
+            while rest != 0:
+                k = _lowest(rest)
+                rest = rest & (rest - 1)
+                bound = o.bound[f, k]
+                for j in range(x0, x1):
+                    u = float(j) + 0.5
+                    if _inside(bound, u, v_row):
+                        d, e = _signed_distance(o, f, k, edges[k], wp.vec2(u, v_row), limit)
+                        if d <= limit:
+                            b = j - x0
+                            covering[b] = covering[b] | (1 << k)
+                            ck = float(1.0)
+                            if d >= -limit:
+                                ck = 1.0 / (1.0 + wp.exp(d / sigma))
+                                bands[k] = bands[k] | (1 << b)
+                                kept.band_coverage[f, k, i, j] = ck
+                                kept.edge[f, k, i, j] = e
+                            coverage[k, b] = ck
+                            distance[k, b] = d
+                            distance_edge[k, b] = e
+            # Then pixel by pixel: one layer shows as it covers; two or more are sorted by depth
+            # (written out in the kernel: functions taking the row's buffers would copy them).
+            whole = full | row_full
+            for j in range(x0, x1):
+                b = j - x0
+                covered = whole | covering[b]
+                if covered == 0:
+                    continue
+                kept.covered[f, i, j] = covered
+                v = _LAYERS()
+                if covered & (covered - 1) == 0:
+                    k = _lowest(covered)
+                    v[k] = 1.0
+                    if covering[b] != 0:
+                        v[k] = coverage[k, b]
+                else:
+                    c = _LAYERS()
+                    sd = _LAYERS()
+                    edge = _EDGES()
+                    rest = covered
+                    while rest != 0:
+                        k = _lowest(rest)
+                        rest = rest & (rest - 1)
+                        if (whole >> k) & 1:
+                            c[k] = 1.0
+                            sd[k] = -1.0e30
+                        else:
+                            c[k] = coverage[k, b]
+                            sd[k] = distance[k, b]
+                            edge[k] = distance_edge[k, b]
+                    z = _depths(intrinsics, o, f, covered, sd, edge, wp.vec2(float(j) + 0.5, v_row))
+                    rest = covered
+                    while rest != 0:
+                        k = _lowest(rest)
+                        rest = rest & (rest - 1)
+                        v[k] = c[k] * _transmittance(c, z, covered, k, -1)
+                        kept.coverage[f, k, i, j] = c[k]
+                        kept.depth[f, k, i, j] = z[k]
                 rest = covered
                 while rest != 0:
-                    m = _lowest(rest)
+                    k = _lowest(rest)
                     rest = rest & (rest - 1)
-                    c[m] = kept.coverage[f, m, i, j]
-                    z[m] = kept.depth[f, m, i, j]
-                dc = dc * _transmittance(c, z, covered, k, -1)
-                rest = others
-                while rest != 0:
-                    m = _lowest(rest)
-                    rest = rest & (rest - 1)
-                    if _in_front(z, k, m):
-                        g_m = _mask_grad(profiled, mask_grad_in, targets, grads, t, f, m, i, j)
-                        dc = dc - g_m * c[m] * _transmittance(c, z, covered, m, k)
-            g = -dc * ck * (1.0 - ck) / sigma
-            acc[ek, 0] += g
-            acc[ek, 1] += g * (p[0] - origin[0])
-            acc[ek, 2] += g * (p[1] - origin[1])
-    for e in range(count):
-        if acc[e, 0] != 0.0:
-            ia = o.hull[f, k, e]
-            ib = o.hull[f, k, (e + 1) % count]
-            a = o.vertices[f, k, ia]
-            shift = origin - a
-            moment = wp.vec2(acc[e, 1] + acc[e, 0] * shift[0], acc[e, 2] + acc[e, 0] * shift[1])
-            grad_a, grad_b = _edge_vertex_grads(acc[e, 0], moment, o.vertices[f, k, ib] - a)
-            wp.atomic_add(vertex_grad_out, f, k, ia, grad_a)
-            wp.atomic_add(vertex_grad_out, f, k, ib, grad_b)
+                    if wp.static(profiled):
+                        row[k] += v[k]
+                        wp.atomic_add(out.cols, f, k, j, v[k])
+                        overlap[k] += v[k] * out.target[t, k, i, j]
+                    else:
+                        out[f, k, i, j] = v[k]
+            _keep_bands(kept, f, i, tx, partial, bands)
+            if wp.static(profiled):
+                for k in range(o.count.shape[1]):
+                    if row[k] != 0.0:
+                        wp.atomic_add(out.rows, f, k, i, row[k])
+        if wp.static(profiled):
+            for k in range(o.count.shape[1]):
+                if overlap[k] != 0.0:
+                    wp.atomic_add(out.overlap, f, k, overlap[k])
+
+    @wp.kernel(module="unique", module_options=_OPTIONS)
+    def _backward(
+        # Model:
+        sigma: float,
+        lanes: int,
+        # Data in:
+        o: Outlines,
+        kept: Layers,
+        grad_in: Drawn,
+        # Data out:
+        vertex_grad_out: wp.array3d(dtype=wp.vec2),
+    ):
+        f, k, tile, lane = wp.tid()
+        ty, tx = tile // kept.tiles.shape[2], tile % kept.tiles.shape[2]
+        if (kept.tiles[f, ty, tx] >> k) & 1 == 0:  # coverage is constant (0 or 1) over the tile
+            return
+        H = kept.covered.shape[1]
+        x0, y0 = tx * TILE, ty * TILE
+        bit = 1 << k
+        t = int(0)
+        if wp.static(profiled):
+            t = grad_in.frame[f]
+        count = o.count[f, k]
+        origin = wp.vec2(float(x0 + TILE // 2), float(y0 + TILE // 2))  # moments about the tile centre
+        acc = _MOMENTS()
+        for i in range(y0 + lane, wp.min(y0 + TILE, H), lanes):
+            band = kept.band[f, k, i, tx]  # where the forward pass drew k's soft band in this row
+            while band != 0:
+                j = x0 + _lowest(band)
+                band = band & (band - 1)
+                p = wp.vec2(float(j) + 0.5, float(i) + 0.5)
+                ek = kept.edge[f, k, i, j]
+                ck = kept.band_coverage[f, k, i, j]
+                dc = _mask_grad(grad_in, t, f, k, i, j)
+                covered = kept.covered[f, i, j]  # the layers at the pixel, k among them
+                others = covered - (covered & bit)
+                if others != 0:
+                    c = _LAYERS()
+                    z = _LAYERS()
+                    rest = covered
+                    while rest != 0:
+                        m = _lowest(rest)
+                        rest = rest & (rest - 1)
+                        c[m] = kept.coverage[f, m, i, j]
+                        z[m] = kept.depth[f, m, i, j]
+                    dc = dc * _transmittance(c, z, covered, k, -1)
+                    rest = others
+                    while rest != 0:
+                        m = _lowest(rest)
+                        rest = rest & (rest - 1)
+                        if _in_front(z, k, m):
+                            g_m = _mask_grad(grad_in, t, f, m, i, j)
+                            dc = dc - g_m * c[m] * _transmittance(c, z, covered, m, k)
+                g = -dc * ck * (1.0 - ck) / sigma
+                acc[ek, 0] += g
+                acc[ek, 1] += g * (p[0] - origin[0])
+                acc[ek, 2] += g * (p[1] - origin[1])
+        for e in range(count):
+            if acc[e, 0] != 0.0:
+                ia = o.hull[f, k, e]
+                ib = o.hull[f, k, (e + 1) % count]
+                a = o.vertices[f, k, ia]
+                shift = origin - a
+                moment = wp.vec2(acc[e, 1] + acc[e, 0] * shift[0], acc[e, 2] + acc[e, 0] * shift[1])
+                grad_a, grad_b = _edge_vertex_grads(acc[e, 0], moment, o.vertices[f, k, ib] - a)
+                wp.atomic_add(vertex_grad_out, f, k, ia, grad_a)
+                wp.atomic_add(vertex_grad_out, f, k, ib, grad_b)
+
+    return _forward, _backward
 
 
 def _tiles(height: int, width: int) -> tuple[int, int]:
@@ -670,45 +660,32 @@ def build_hulls(sides: wp.array, pad: float, outlines: Outlines) -> None:
     wp.launch(_hulls, dim=outlines.count.shape, inputs=[sides, pad, outlines], device=outlines.count.device)
 
 
-def rasterize(
-    intrinsics: wp.vec4, sigma: float, outlines: Outlines, targets: Targets | None, masks: wp.array, kept: Layers,
-    profiles: Profiles,
-) -> None:
-    """Draw ``outlines`` (hulls built) with edge softness ``sigma`` [px] through a camera of
-    ``intrinsics`` (fx, fy, cx, cy) [px]: without ``targets``, the visible soft masks v (F, P,
-    H, W) into the zero-initialised ``masks``; with them, only the profiles of v against them,
-    frame f read against target frame ``targets.frame[f]``, into the zero-initialised
-    ``profiles`` (``masks`` is then not touched). Either way what the backward pass reads goes
-    to ``kept``. A tile takes :func:`lanes` threads."""
+def rasterize(intrinsics: wp.vec4, sigma: float, outlines: Outlines, kept: Layers, out) -> None:
+    """Draw ``outlines`` (hulls built) with edge softness ``sigma`` [px] through a camera of ``intrinsics`` (fx, fy,
+    cx, cy) [px] into ``out``: the zero-initialised visible soft masks v (F, P, H, W), or, a :class:`Profiles`,
+    only the profiles of v against its targets (its sums zero-initialised). What the backward pass reads goes to
+    ``kept``. A tile takes :func:`lanes` threads."""
     covered = kept.covered
     threads = lanes(covered.device)
     dim = (covered.shape[0], *_tiles(covered.shape[1], covered.shape[2]), threads)
-    profiled = int(targets is not None)
-    inputs = [intrinsics, sigma, profiled, threads, outlines, targets if profiled else _no_targets(covered.device)]
-    wp.launch(_forward, dim=dim, inputs=inputs, outputs=[masks, kept, profiles], device=covered.device)
+    forward, _ = _kernels(_profiled(out))
+    wp.launch(forward, dim=dim, inputs=[intrinsics, sigma, threads, outlines], outputs=[kept, out],
+              device=covered.device)
 
 
-def rasterize_backward(
-    sigma: float, outlines: Outlines, kept: Layers, targets: Targets | None, mask_grad: wp.array,
-    profile_grads: Profiles, vertex_grad: wp.array,
-) -> None:
-    """dL/d(projected vertices) (F, P, V) into the zero-initialised ``vertex_grad``, from the
-    outlines and the layers :func:`rasterize` kept. dL/dv is ``mask_grad`` (F, P, H, W) without
-    ``targets``, and with them comes from the gradients of the profiles ``profile_grads``. A tile
-    takes :func:`lanes` threads per primitive."""
+def rasterize_backward(sigma: float, outlines: Outlines, kept: Layers, grad_in, vertex_grad: wp.array) -> None:
+    """dL/d(projected vertices) (F, P, V) into the zero-initialised ``vertex_grad``, from the outlines and the
+    layers :func:`rasterize` kept. ``grad_in`` is dL/dv (F, P, H, W), or the gradients of the profiles (a
+    :class:`Profiles`, as :func:`rasterize` drew). A tile takes :func:`lanes` threads per primitive."""
     coverage = kept.coverage
     threads = lanes(coverage.device)
     rows, cols = _tiles(coverage.shape[2], coverage.shape[3])
     dim = (coverage.shape[0], coverage.shape[1], rows * cols, threads)
-    profiled = int(targets is not None)
-    inputs = [sigma, profiled, threads, outlines, kept, targets if profiled else _no_targets(coverage.device), mask_grad,
-              profile_grads]
-    wp.launch(_backward, dim=dim, inputs=inputs, outputs=[vertex_grad], device=vertex_grad.device)
+    _, backward = _kernels(_profiled(grad_in))
+    wp.launch(backward, dim=dim, inputs=[sigma, threads, outlines, kept, grad_in], outputs=[vertex_grad],
+              device=vertex_grad.device)
 
 
-def _no_targets(device) -> Targets:
-    """An empty :class:`Targets` (the kernels read none without targets)."""
-    empty = Targets()
-    empty.frame = wp.zeros(0, dtype=int, device=device)
-    empty.masks = wp.zeros((0, 0, 0, 0), dtype=float, device=device)
-    return empty
+def _profiled(drawn) -> bool:
+    """Whether the kernels draw profiles (``drawn`` a :class:`Profiles`) rather than masks (an array)."""
+    return not wp.types.is_array(drawn)

@@ -15,7 +15,7 @@ import warp as wp
 
 from warpskill.contract.camera import Intrinsics
 from warpskill.engine.primitives import HAND_LENGTH, HAND_PRISM_RADIUS, HAND_SEGMENTS, NEAR_PLANE
-from warpskill.engine.warp_bridge import WorkspacePool, as_warp, copy_into, warp_scope
+from warpskill.engine.warp_bridge import WorkspacePool, as_warp, copy_into, make_struct, warp_scope
 from warpskill.kernels import prisms, raster
 
 _MAX_VERTICES = 2 * raster.MAX_SIDES
@@ -228,17 +228,19 @@ class _SoftSilhouettes(torch.autograd.Function):
         wp.init()  # no-op once Warp is up
         ctx.set_materialize_grads(False)  # a profile the loss does not read seeds nothing
         device = pixels.device
-        work = _POOL.take((tuple(pixels.shape), tuple(planes.shape), tuple(image_size), device, targets is not None))
+        profiled = targets is not None
+        work = _POOL.take((tuple(pixels.shape), tuple(planes.shape), tuple(image_size), device, profiled))
         work.load(pixels, planes, visible)
-        along = None if targets is None else work.targets(targets, target_frame)
         masks = torch.zeros(work.mask_shape, dtype=torch.float32, device=device)  # the call's own: image-sized
         torch._foreach_zero_(list(work.profiles))
         with warp_scope(device):
+            if profiled:
+                work.load_targets(targets, target_frame)
             raster.build_hulls(as_warp(sides), raster.CUTOFF * sigma, work.outlines)
-            raster.rasterize(wp.vec4(*camera_vec), sigma, work.outlines, along, as_warp(masks), work.kept,
-                             work.views["profiles"])
+            raster.rasterize(wp.vec4(*camera_vec), sigma, work.outlines, work.kept,
+                             work.views["profiles"] if profiled else as_warp(masks))
         if ctx.needs_input_grad[0]:
-            ctx.work, ctx.along, ctx.sigma = work, along, sigma
+            ctx.work, ctx.sigma = work, sigma
             ctx.save_for_backward(pixels.detach())
         else:
             _POOL.give_back(work.key, work)
@@ -253,11 +255,14 @@ class _SoftSilhouettes(torch.autograd.Function):
                 buffer.zero_()
             else:
                 buffer.copy_(grad)
-        mask_grad = torch.zeros(work.mask_shape, device=pixels.device) if mask_grad is None else mask_grad.float()
         work.vertex_grad.zero_()
         with warp_scope(pixels.device):
-            raster.rasterize_backward(ctx.sigma, work.outlines, work.kept, ctx.along, as_warp(mask_grad),
-                                      work.views["profile_grads"], work.views["vertex_grad"])
+            if work.profiled:
+                grad_in = work.views["profile_grads"]
+            else:
+                grad_in = as_warp(torch.zeros(work.mask_shape, device=pixels.device) if mask_grad is None
+                                  else mask_grad.float())
+            raster.rasterize_backward(ctx.sigma, work.outlines, work.kept, grad_in, work.views["vertex_grad"])
         vertex_grad = work.vertex_grad.to(pixels.dtype, copy=True)
         _POOL.give_back(work.key, work)
         del ctx.work
@@ -269,8 +274,8 @@ class _Workspace:
     with the kernels' structs and views over them (made once): ``outlines`` (:class:`raster.Outlines`:
     the visibility, projected vertices, hulls and face planes), ``kept`` (:class:`raster.Layers`:
     what the forward pass keeps for the backward one), the ``profiles`` (M rows; M = F with
-    targets, else 0) and their gradients ``profile_grads``, the targets' frame indices ``frame``
-    (F,) int32, and the backward pass's output ``vertex_grad`` (F, P, V, 2). The image-sized
+    targets, else 0) and their gradients ``profile_grads`` (:class:`raster.Profiles`, reading the targets at
+    the frame indices ``frame`` (F,) int32), and the backward pass's output ``vertex_grad`` (F, P, V, 2). The image-sized
     masks and their gradient are the call's own.
 
     A call takes one from :data:`_POOL` and gives it back once its backward pass has run (at
@@ -281,7 +286,7 @@ class _Workspace:
         (F, P, V, _), plane_shape, (H, W), device, profiled = key
         i32, f32 = {"dtype": torch.int32, "device": device}, {"dtype": torch.float32, "device": device}
         made = F if profiled else 0
-        self.key = key
+        self.key, self.profiled = key, profiled
         self.visible = torch.zeros(F, P, **i32)
         self.vertices = torch.zeros(F, P, V, 2, **f32)
         self.plane_count = torch.zeros(F, P, **i32)
@@ -291,23 +296,24 @@ class _Workspace:
             _Profiles(*(torch.zeros(made, P, *size, **f32) for size in ((H,), (W,), ()))) for _ in range(2))
         self.frame = torch.zeros(F, **i32)
         self.vertex_grad = torch.zeros(F, P, V, 2, **f32)
-        self._targets: tuple[torch.Tensor, raster.Targets] | None = None
+        self._target: torch.Tensor | None = None  # the target masks the profiles' records read
         with warp_scope(device):
-            self.outlines = _struct(
+            self.outlines = make_struct(
                 raster.Outlines, visible=as_warp(self.visible), vertices=as_warp(self.vertices, wp.vec2),
                 hull=as_warp(torch.zeros(F, P, raster.MAX_HULL, **i32)), count=as_warp(torch.zeros(F, P, **i32)),
                 line=as_warp(torch.zeros(F, P, raster.MAX_HULL, 3, **f32), wp.vec3),
                 bound=as_warp(torch.zeros(F, P, 4, **f32), wp.vec4), plane_count=as_warp(self.plane_count),
                 plane=as_warp(self.plane, wp.vec4))
             rows, cols = (H + raster.TILE - 1) // raster.TILE, (W + raster.TILE - 1) // raster.TILE
-            self.kept = _struct(
+            self.kept = make_struct(
                 raster.Layers, covered=as_warp(torch.zeros(F, H, W, **i32)),
                 coverage=as_warp(torch.zeros(F, P, H, W, **f32)),
                 depth=as_warp(torch.zeros(F, P, H, W, **f32)), tiles=as_warp(torch.zeros(F, rows, cols, **i32)),
                 band=as_warp(torch.zeros(F, P, H, cols, **i32)),
                 band_coverage=as_warp(torch.zeros(F, P, H, W, **f32)), edge=as_warp(torch.zeros(F, P, H, W, **i32)))
-            self.views = {"profiles": self.profiles.struct(), "profile_grads": self.profile_grads.struct(),
-                          "frame": as_warp(self.frame), "vertex_grad": as_warp(self.vertex_grad, wp.vec2)}
+            frame = as_warp(self.frame)
+            self.views = {"profiles": self.profiles.struct(frame), "profile_grads": self.profile_grads.struct(frame),
+                          "vertex_grad": as_warp(self.vertex_grad, wp.vec2)}
 
     def load(self, pixels: torch.Tensor, planes: torch.Tensor, visible: torch.Tensor) -> None:
         """Copy a call's inputs in."""
@@ -316,15 +322,15 @@ class _Workspace:
         self.plane_count.copy_((planes[..., 3] < 0).sum(dim=-1))
         self.visible.copy_(visible)
 
-    def targets(self, masks: torch.Tensor, frame: torch.Tensor) -> raster.Targets:
-        """The kernels' :class:`raster.Targets` for target ``masks`` (T, P, H, W) read at ``frame``
-        (F,): the frame indices copied in, the masks' struct made again only for other masks."""
+    def load_targets(self, masks: torch.Tensor, frame: torch.Tensor) -> None:
+        """Read the profiles against target ``masks`` (T, P, H, W) at ``frame`` (F,): the frame indices copied in,
+        the masks' view set in the profiles' records again only for other masks."""
         self.frame.copy_(frame)
         masks = masks.to(torch.float32).contiguous()
-        if self._targets is None or not _same_memory(self._targets[0], masks):
-            with warp_scope(masks.device):
-                self._targets = masks, _struct(raster.Targets, frame=self.views["frame"], masks=as_warp(masks))
-        return self._targets[1]
+        if self._target is None or not _same_memory(self._target, masks):
+            self._target = masks
+            view = as_warp(masks)
+            self.views["profiles"].target = self.views["profile_grads"].target = view
 
 
 def _same_memory(a: torch.Tensor, b: torch.Tensor) -> bool:
@@ -342,17 +348,11 @@ class _Profiles(NamedTuple):
     cols: torch.Tensor
     overlap: torch.Tensor
 
-    def struct(self) -> raster.Profiles:
-        """The kernels' :class:`raster.Profiles`, over zero-copy Warp views."""
-        return _struct(raster.Profiles, rows=as_warp(self.rows), cols=as_warp(self.cols), overlap=as_warp(self.overlap))
-
-
-def _struct(kind, **fields):
-    """An instance of the Warp struct ``kind`` with ``fields`` set."""
-    record = kind()
-    for name, value in fields.items():
-        setattr(record, name, value)
-    return record
+    def struct(self, frame: wp.array) -> raster.Profiles:
+        """The kernels' :class:`raster.Profiles` over zero-copy Warp views, reading targets at ``frame`` (the target
+        masks set by :meth:`_Workspace.load_targets`)."""
+        return make_struct(raster.Profiles, frame=frame, rows=as_warp(self.rows), cols=as_warp(self.cols),
+                           overlap=as_warp(self.overlap))
 
 
 def check_silhouette_inputs(

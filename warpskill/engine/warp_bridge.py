@@ -17,7 +17,9 @@ configure_warp_log()  # quiet unless asked for (warpskill --verbose), before any
 _DENORMAL = 1e-40  # a float32 denormal
 
 
-def as_warp(tensor: torch.Tensor, dtype=None, requires_grad: bool = False, grad: torch.Tensor | None = None) -> wp.array:
+def as_warp(
+    tensor: torch.Tensor, dtype=None, requires_grad: bool = False, grad: torch.Tensor | None = None
+) -> wp.array:
     """Zero-copy Warp view of ``tensor`` (detached), with a Warp-owned gradient buffer if
     ``requires_grad``, or with the view of ``grad`` as its gradient.
 
