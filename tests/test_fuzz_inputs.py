@@ -41,12 +41,13 @@ from warpskill.contract.reconstruction import (
     ReconstructionError,
 )
 from warpskill.contract.replay import Replay
-from warpskill.data.box_annotations import (
+from warpskill.data.boxes.something_else import (
     read_something_else,
     something_else_demonstration,
 )
-from warpskill.data.contact import IN_CONTACT, NO_CONTACT, UNKNOWN, read_detections
-from warpskill.data.readers import davis_palette, read_label_images, read_mask_folders
+from warpskill.data.contact import IN_CONTACT, NO_CONTACT, UNKNOWN
+from warpskill.data.readers.contact_files import read_detections
+from warpskill.data.readers.mask_files import davis_palette, read_label_images, read_mask_folders
 
 MIN_CASES = 1000
 """Generated cases the module must run in total (the issue's acceptance: >= 1000 in < 60 s)."""
@@ -695,20 +696,25 @@ def _reader_names(root: Path, names: set[str]) -> set[str]:
     return {str(root / name) if "/" in name or name == "" else name for name in names} | {str(root)} | set(DEMO_KEYS)
 
 
+def check_reader(folder: str, files: dict[str, bytes | None], names: set[str], read) -> None:
+    """Write ``files`` into a fresh ``folder`` and ``read(root)`` it: a valid demonstration, or an
+    error that names the folder, one of ``names`` or a demonstration key."""
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp) / folder
+        root.mkdir()
+        _write_tree(root, files)
+        demo, error = outcome(lambda: read(root), (DemonstrationError, FileNotFoundError), _reader_names(root, names))
+    if error is None:
+        check_demonstration(demo)
+
+
 @pytest.mark.slow
 @fuzz(150)
 @given(mask_folder_trees())
 def test_malformed_mask_folders_raise_demonstration_error(case):
     CASES["mask folders"] += 1
     files, names, contact, fps = case
-    with tempfile.TemporaryDirectory() as tmp:
-        root = Path(tmp) / "masks"
-        root.mkdir()
-        _write_tree(root, files)
-        demo, error = outcome(lambda: read_mask_folders(root, fps, contact=contact),
-                              (DemonstrationError, FileNotFoundError), _reader_names(root, names))
-    if error is None:
-        check_demonstration(demo)
+    check_reader("masks", files, names, lambda root: read_mask_folders(root, fps, contact=contact))
 
 
 @st.composite
@@ -760,14 +766,7 @@ def label_image_folders(draw):
 def test_malformed_label_images_raise_demonstration_error(case):
     CASES["label images"] += 1
     files, names, mapping, contact = case
-    with tempfile.TemporaryDirectory() as tmp:
-        root = Path(tmp) / "labels"
-        root.mkdir()
-        _write_tree(root, files)
-        demo, error = outcome(lambda: read_label_images(root, 12.0, mapping=mapping, contact=contact),
-                              (DemonstrationError, FileNotFoundError), _reader_names(root, names))
-    if error is None:
-        check_demonstration(demo)
+    check_reader("labels", files, names, lambda root: read_label_images(root, 12.0, mapping=mapping, contact=contact))
 
 
 # --------------------------------------------------------------------------- Something-Else JSON and CSVs

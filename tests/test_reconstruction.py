@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from record_support import assert_save_is_atomic
 
 from warpskill.contract.reconstruction import (
     FIELD_SHAPES,
@@ -136,15 +137,9 @@ def test_corrupt_file(tmp_path):
 
 
 def test_atomic_save_keeps_existing_file(tmp_path):
-    path = tmp_path / "reconstruction.npz"
     recon = Reconstruction(**valid_fields())
-    recon.save(path)
-    before = path.read_bytes()
-    recon.loss = np.array([lambda: None], dtype=object)  # cannot be written
-    with pytest.raises(Exception):
-        recon.save(path)
-    assert path.read_bytes() == before
-    assert [p.name for p in tmp_path.iterdir()] == ["reconstruction.npz"]
+    assert_save_is_atomic(recon, tmp_path / "reconstruction.npz",
+                          lambda: setattr(recon, "loss", np.array([lambda: None], dtype=object)))
 
 
 def test_object_corners():

@@ -17,8 +17,9 @@ from warpskill.contract import ResultsFolder, evaluate
 if TYPE_CHECKING:  # the optimiser pulls in torch and Warp: imported where used, so the command line starts fast
     from warpskill.optimizer import OptimizeOptions
 
-__all__ = ["add_optimize_options", "add_placement_options", "installed", "optimize_options", "placement",
-           "robot_steps_available", "reconstruct", "holding_out", "report", "save_plan", "save_scene"]
+__all__ = ["add_optimize_options", "add_placement_options", "add_robot_step_options", "installed", "optimize_options",
+           "placement", "plan_robot", "robot_steps_available", "robot_steps_wanted", "reconstruct", "holding_out",
+           "report", "save_plan", "save_scene"]
 
 OPTIMIZE_FLAGS = {"device": "--device", "iterations": "--iterations", "seed": "--seed", "init_only": "--init-only",
                   "known": "--known", "object_noun": "--object-noun", "settings": "--set"}
@@ -102,6 +103,26 @@ def add_placement_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--yaw", type=float, default=None,
                         help="fix the direction of the robot's forward axis in the world, about z [deg] "
                              "(default: searched; 90 with --offset alone)")
+
+
+def add_robot_step_options(parser: argparse.ArgumentParser) -> None:
+    """``--no-robot`` and the placement options: a command that plans and replays after reconstructing."""
+    parser.add_argument("--no-robot", action="store_true", help="stop after the reconstruction (no Panda plan or replay)")
+    add_placement_options(parser)
+
+
+def robot_steps_wanted(args: argparse.Namespace) -> bool:
+    """Whether to plan and replay: no ``--no-robot``, and the robot extra installed (else one line says how)."""
+    return not args.no_robot and robot_steps_available()
+
+
+def plan_robot(recon, args: argparse.Namespace):
+    """The Panda's plan for ``recon`` placed as ``args`` say, or None where none is found (one line says why)."""
+    try:
+        return robot.retarget(recon, placement=placement(args))
+    except robot.PlanError as error:
+        print(f"retarget: stopped, no robot plan: {error}")
+        return None
 
 
 def placement(args):

@@ -5,18 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from warpskill import robot, visual  # lazy packages: their names (MuJoCo, torch, Warp) load on first use
-from warpskill.cli.common import (
-    add_optimize_options,
-    add_placement_options,
-    holding_out,
-    optimize_options,
-    placement,
-    reconstruct,
-    report,
-    robot_steps_available,
-    save_plan,
-    save_scene,
-)
+from warpskill.cli import common
 from warpskill.contract import Demonstration, Reconstruction, ResultsFolder, evaluate
 
 __all__ = ["register"]
@@ -27,9 +16,8 @@ def register(commands) -> None:
     demo = commands.add_parser("demo", help="run the whole pipeline on an embedded synthetic demonstration")
     demo.add_argument("-o", "--out", type=Path, default=Path("warpskill-out/demo"), help="output folder")
     demo.add_argument("--action", default="put_onto", help="which action to synthesise (default: put_onto)")
-    demo.add_argument("--no-robot", action="store_true", help="stop after the reconstruction (no Panda plan or replay)")
-    add_optimize_options(demo)
-    add_placement_options(demo)
+    common.add_optimize_options(demo)
+    common.add_robot_step_options(demo)
     demo.set_defaults(run=_demo)
 
     optimize = commands.add_parser("optimize", help="reconstruct demonstration .npz files (several: together)")
@@ -43,7 +31,7 @@ def register(commands) -> None:
                                "OUT/<name>/ each, finished ones skipped on a rerun (needs the cluster extra)")
     optimize.add_argument("--ray-address", metavar="ADDR",
                           help="join this Ray cluster instead of starting a local one (default: $RAY_ADDRESS)")
-    add_optimize_options(optimize)
+    common.add_optimize_options(optimize)
     optimize.set_defaults(run=_optimize)
 
     evaluate = commands.add_parser("evaluate", help="check a reconstruction against the paper's success criteria")
@@ -53,36 +41,32 @@ def register(commands) -> None:
     evaluate.set_defaults(run=_evaluate)
 
 
-@holding_out
+@common.holding_out
 def _demo(args) -> int:
     from warpskill.synthetic import make_demonstration  # torch and Warp: only for this command
 
-    options = optimize_options(args)
+    options = common.optimize_options(args)
     robot.prefer_headless_gl()
     demo = make_demonstration(args.action, seed=options.seed)
     keeper = ResultsFolder(args.out)
     print(f"demonstration: {keeper.save(demo, keeper.demonstration)} ({args.action}, {demo.num_frames} frames)")
-    [recon] = reconstruct([demo], [args.out], keeper.checkpoint, options, quiet=args.quiet)
-    if args.no_robot:
+    [recon] = common.reconstruct([demo], [args.out], keeper.checkpoint, options, quiet=args.quiet)
+    if not common.robot_steps_wanted(args):
         return 0
-    if not robot_steps_available():
+    plan = common.plan_robot(recon, args)
+    if plan is None:
         return 0
-    try:
-        plan = robot.retarget(recon, placement=placement(args))
-    except robot.PlanError as error:
-        print(f"robot plan: none: {error}")
-        return 0
-    save_plan(plan, keeper.plan)
+    common.save_plan(plan, keeper.plan)
     result = robot.replay(plan, recon)
     print(f"replay: {keeper.save(result, keeper.replay)} (mujoco, {result.replay_time:.2f} s); "
           f"picture: {robot.record(plan, recon, result, args.out)}")
-    save_scene(recon, demo, args.out, plan, result, quiet=True)  # scene.rrd again, with the robot
-    report(result.reconstruction, args.action)
+    common.save_scene(recon, demo, args.out, plan, result, quiet=True)  # scene.rrd again, with the robot
+    common.report(result.reconstruction, args.action)
     return 0
 
 
 def _optimize(args) -> int:
-    options = optimize_options(args)
+    options = common.optimize_options(args)
     stems = [path.stem for path in args.demos]
     if len(set(stems)) < len(stems):
         raise ValueError("demonstration files must have different names: each gets OUT/<name>/")
@@ -94,7 +78,7 @@ def _optimize(args) -> int:
         print(f"--workers needs Ray, which is not installed ({INSTALL_HINT}): optimising serially")
     demos = [Demonstration.load(path) for path in args.demos]
     folders = [args.out] if len(demos) == 1 else [args.out / stem for stem in stems]
-    reconstruct(demos, folders, ResultsFolder(args.out).checkpoint, options, quiet=args.quiet, pictures=not args.no_pictures)
+    common.reconstruct(demos, folders, ResultsFolder(args.out).checkpoint, options, quiet=args.quiet, pictures=not args.no_pictures)
     return 0
 
 
@@ -116,7 +100,7 @@ def _optimize_on_ray(args, options, stems: list[str]) -> int:
         if outcome.ok:
             recon = Reconstruction.load(outcome.reconstruction)
             print(f"reconstruction: {outcome.reconstruction}")
-            report(recon, str(recon.action) or None)
+            common.report(recon, str(recon.action) or None)
     print(summary)
     return 1 if summary.failed else 0
 
@@ -124,7 +108,7 @@ def _optimize_on_ray(args, options, stems: list[str]) -> int:
 def _pictures(recon, demo, folder: Path) -> None:
     """The pictures and 3D scene of one reconstruction (run in its Ray task)."""
     visual.save_pictures(recon, demo, folder)
-    save_scene(recon, demo, folder, quiet=True)
+    common.save_scene(recon, demo, folder, quiet=True)
 
 
 def _evaluate(args) -> int:

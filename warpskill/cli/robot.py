@@ -8,13 +8,7 @@ import sys
 from pathlib import Path
 
 from warpskill import robot  # a lazy package: its names (placo, MuJoCo) load on first use
-from warpskill.cli.common import (
-    add_placement_options,
-    holding_out,
-    placement,
-    report,
-    save_plan,
-)
+from warpskill.cli import common
 from warpskill.contract import LayoutError, Reconstruction, ResultsFolder
 
 __all__ = ["register"]
@@ -25,7 +19,7 @@ def register(commands) -> None:
     retarget = commands.add_parser("retarget", help="plan a Franka Panda motion for a reconstruction (placo)")
     retarget.add_argument("reconstruction", type=Path, help="reconstruction .npz (docs/formats.md)")
     retarget.add_argument("-o", "--out", type=Path, required=True, help="plan .npz (a .csv is written beside it)")
-    add_placement_options(retarget)
+    common.add_placement_options(retarget)
     add_layout_options(retarget)
     retarget.add_argument("--object-size", type=float, nargs=3, default=None, metavar=("X", "Y", "Z"),
                           help="the robot's object [m] (default: the reconstructed cuboid, or one that fits the "
@@ -81,11 +75,11 @@ def _retarget(args) -> int:
     recon = Reconstruction.load(args.reconstruction)
     try:
         layout = layout_from(args, recon)
-        plan = robot.retarget(recon, layout=layout, placement=placement(args), static_sizes=args.static_size,
+        plan = robot.retarget(recon, layout=layout, placement=common.placement(args), static_sizes=args.static_size,
                         keep_size=args.keep_size, object_size=None if layout is not None else args.object_size)
     except LayoutError as error:
         return refused(error)
-    save_plan(plan, args.out)
+    common.save_plan(plan, args.out)
     if layout is not None:
         print(f"layout: {layout.describe()}")
     if str(recon.action):  # what the video teaches, beside the reconstruction (docs/formats.md)
@@ -95,7 +89,7 @@ def _retarget(args) -> int:
     return 0
 
 
-@holding_out
+@common.holding_out
 def _replay(args) -> int:
     robot.prefer_headless_gl()
     recon = Reconstruction.load(args.reconstruction)
@@ -106,5 +100,5 @@ def _replay(args) -> int:
     print(f"replay: {keeper.save(result, keeper.replay)} ({args.engine}, {result.replay_time:.2f} s)")
     if args.video:
         print(f"video: {robot.record(plan, plan.scene(recon), result, args.out)}")
-    report(result.reconstruction, result.evaluation.action)
+    common.report(result.reconstruction, result.evaluation.action)
     return 0 if result.success else 3

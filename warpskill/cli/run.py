@@ -22,18 +22,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from warpskill import robot, visual  # lazy packages: their names (MuJoCo, torch, Warp) load on first use
-from warpskill.cli.common import (
-    add_optimize_options,
-    add_placement_options,
-    holding_out,
-    optimize_options,
-    placement,
-    reconstruct,
-    report,
-    robot_steps_available,
-    save_plan,
-    save_scene,
-)
+from warpskill.cli import common
 from warpskill.cli.prepare import add_recording_options, prepare
 from warpskill.contract import ResultsFolder
 from warpskill.data import read_video
@@ -47,15 +36,14 @@ def register(commands) -> None:
     add_recording_options(parser)
     parser.add_argument("-o", "--out", type=Path, required=True, help="output folder")
     parser.add_argument("--engine", choices=("mujoco", "newton"), default="mujoco", help="replay engine")
-    parser.add_argument("--no-robot", action="store_true", help="stop after the reconstruction")
-    add_optimize_options(parser)
-    add_placement_options(parser)
+    common.add_optimize_options(parser)
+    common.add_robot_step_options(parser)
     parser.set_defaults(run=_run)
 
 
-@holding_out
+@common.holding_out
 def _run(args) -> int:
-    options = optimize_options(args)
+    options = common.optimize_options(args)
     out = args.out
     keeper = ResultsFolder(out)
     demo_path, sheet_path = keeper.demonstration, out / "demo.png"
@@ -74,17 +62,14 @@ def _run(args) -> int:
         redo = True
         if frames is None:
             frames = _frames(args.video, demo)
-        [recon] = reconstruct([demo], [out], keeper.checkpoint, options, quiet=args.quiet, pictures=False)
+        [recon] = common.reconstruct([demo], [out], keeper.checkpoint, options, quiet=args.quiet, pictures=False)
         for name, path in visual.save_pictures(recon, demo, out, background=frames).items():
             print(f"{name}: {path}")
     else:
         print(f"optimize: done, skipped ({recon_path})")
-        report(recon, demo.action)
+        common.report(recon, demo.action)
 
-    if args.no_robot:
-        _scene(recon, demo, args.video, out, redo)
-        return 0
-    if not robot_steps_available():
+    if not common.robot_steps_wanted(args):
         _scene(recon, demo, args.video, out, redo)
         return 0
     robot.prefer_headless_gl()
@@ -93,13 +78,11 @@ def _run(args) -> int:
     plan = None if redo or not keeper.plan_csv.is_file() else keeper.load_finished(plan_path, robot.RobotPlan.load)
     if plan is None:
         redo = True
-        try:
-            plan = robot.retarget(recon, placement=placement(args))
-        except robot.PlanError as error:
-            print(f"retarget: stopped, no robot plan: {error}")
+        plan = common.plan_robot(recon, args)
+        if plan is None:
             _scene(recon, demo, args.video, out, redo)
             return 3
-        save_plan(plan, plan_path)
+        common.save_plan(plan, plan_path)
     else:
         print(f"retarget: done, skipped ({plan_path})")
 
@@ -112,7 +95,7 @@ def _run(args) -> int:
         print(f"replay: {replay_path} ({args.engine}, {result.replay_time:.2f} s)")
     else:
         print(f"replay: done, skipped ({replay_path})")
-    report(result.reconstruction, demo.action)
+    common.report(result.reconstruction, demo.action)
     _scene(recon, demo, args.video, out, redo, plan, result)
     return 0 if result.success else 3
 
@@ -121,7 +104,7 @@ def _scene(recon, demo, video: Path, out: Path, redo: bool, plan=None, result=No
     """The 3D recording (``scene.rrd``) of what exists, the video's frames included, unless nothing
     changed since it was written."""
     if redo or not (out / "scene.rrd").is_file():
-        save_scene(recon, demo, out, plan, result, frames=_frames(video, demo))
+        common.save_scene(recon, demo, out, plan, result, frames=_frames(video, demo))
 
 
 def _frames(video: Path, demo):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Mapping
 
 import cv2
 import numpy as np
@@ -145,29 +146,38 @@ class Demonstration:
             FileNotFoundError: ``path`` does not exist.
         """
         arrays = read_npz(path, DemonstrationError)
+        try:
+            return cls.from_file_arrays(arrays)
+        except DemonstrationError as exc:
+            raise DemonstrationError(f"{path}: {exc}") from None
+
+    @classmethod
+    def from_file_arrays(cls, arrays: Mapping[str, np.ndarray]) -> "Demonstration":
+        """:meth:`from_arrays` of a file's arrays, keyed as in ``docs/formats.md`` (truth as ``truth_*``).
+
+        Raises:
+            DemonstrationError: a missing required key, an unknown key, or naming the key and the problem.
+        """
         missing = [key for key in REQUIRED_KEYS if key not in arrays]
         if missing:
-            raise DemonstrationError(f"{path}: missing required key(s) {', '.join(missing)}")
+            raise DemonstrationError(f"missing required key(s) {', '.join(missing)}")
         known = REQUIRED_KEYS + OPTIONAL_KEYS
         unknown = sorted(key for key in arrays if key not in known and not key.startswith(TRUTH_PREFIX))
         if unknown:
             valid = ", ".join(known + (TRUTH_PREFIX + "*",))
-            raise DemonstrationError(f"{path}: unknown key(s) {', '.join(unknown)}; valid keys: {valid}")
+            raise DemonstrationError(f"unknown key(s) {', '.join(unknown)}; valid keys: {valid}")
         truth = {key[len(TRUTH_PREFIX) :]: value for key, value in arrays.items() if key.startswith(TRUTH_PREFIX)}
-        try:
-            return cls.from_arrays(
-                arrays["hand_mask"],
-                arrays["object_mask"],
-                arrays["contact"],
-                arrays["fps"],
-                static_mask=arrays.get("static_mask"),
-                camera_K=arrays.get("camera_K"),
-                action=_optional_string("action", arrays.get("action")),
-                truth=truth,
-                object_noun=_optional_string("object_noun", arrays.get("object_noun")),
-            )
-        except DemonstrationError as exc:
-            raise DemonstrationError(f"{path}: {exc}") from None
+        return cls.from_arrays(
+            arrays["hand_mask"],
+            arrays["object_mask"],
+            arrays["contact"],
+            arrays["fps"],
+            static_mask=arrays.get("static_mask"),
+            camera_K=arrays.get("camera_K"),
+            action=_optional_string("action", arrays.get("action")),
+            truth=truth,
+            object_noun=_optional_string("object_noun", arrays.get("object_noun")),
+        )
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the demonstration ``.npz`` to ``path`` atomically.
