@@ -26,11 +26,43 @@ _MIN_DEPTH = 1.0e-3
 
 
 @functools.cache
+def records(dtype):
+    """The kernels' records for scalar type ``dtype``: (``Prisms``, ``Scene``) Warp struct types.
+
+    ``Prisms``: each prism's ``sides`` (P,) int32, the hand prism's circumradius ``radius`` [m] and ``length`` [m],
+    and the ``near`` plane [m]. ``Scene``: ``hand_pos`` (F,), ``hand_rot`` (F,), ``cuboid_pos``, ``cuboid_rot``,
+    ``cuboid_size`` (F, C) and the camera's ``height`` [m] and ``elevation`` [rad] (1,); :func:`project`'s adjoint
+    adds into their arrays' gradients.
+    """
+    vec3, mat33 = wp.types.vector(3, dtype), wp.types.matrix((3, 3), dtype)
+
+    @wp.struct
+    class Prisms:
+        sides: wp.array(dtype=int)
+        radius: dtype
+        length: dtype
+        near: dtype
+
+    @wp.struct
+    class Scene:
+        hand_pos: wp.array(dtype=vec3)
+        hand_rot: wp.array(dtype=mat33)
+        cuboid_pos: wp.array2d(dtype=vec3)
+        cuboid_rot: wp.array2d(dtype=mat33)
+        cuboid_size: wp.array2d(dtype=vec3)
+        height: wp.array(dtype=dtype)
+        elevation: wp.array(dtype=dtype)
+
+    return Prisms, Scene
+
+
+@functools.cache
 def _kernels(dtype, max_sides: int):
     """The projection and face-plane kernels for scalar type ``dtype`` and prisms of at most ``max_sides`` sides."""
     vec2, vec3, vec4 = (wp.types.vector(n, dtype) for n in (2, 3, 4))
     mat33 = wp.types.matrix((3, 3), dtype)
     vertices = wp.types.matrix((2 * max_sides, 3), dtype)  # a prism's vertices, one a row
+    Prisms, Scene = records(dtype)
     two_pi = 2.0 * math.pi
 
     @wp.func
@@ -67,26 +99,28 @@ def _kernels(dtype, max_sides: int):
         return vec3(wp.where(q == 1 or q == 2, one, -one), wp.where(q >= 2, one, -one), wp.where(v >= 4, one, -one))
 
     @wp.func
-    def prism_frame(
-        f: int, k: int, radius: dtype, length: dtype, near: dtype, hand_pos: wp.array(dtype=vec3),
-        hand_rot: wp.array(dtype=mat33), cuboid_pos: wp.array2d(dtype=vec3), cuboid_rot: wp.array2d(dtype=mat33),
-        cuboid_size: wp.array2d(dtype=vec3), height: dtype, R: mat33,
-    ) -> tuple[mat33, vec3, vec3]:
+    def hand_extent_in(prisms: Prisms, scene: Scene, f: int, height: dtype, R: mat33) -> vec3:
+        """:func:`hand_extent` of the hand in frame f seen by a camera at ``height`` of rotation ``R``."""
+        forward = vec3(R[0, 2], R[1, 2], R[2, 2])
+        return hand_extent(scene.hand_pos[f], scene.hand_rot[f], height, forward, prisms.radius, prisms.length,
+                           prisms.near)
+
+    @wp.func
+    def prism_frame(prisms: Prisms, scene: Scene, f: int, k: int, height: dtype, R: mat33) -> tuple[mat33, vec3, vec3]:
         """(axes, origin, shape) of primitive k in frame f: its vertex v is axes local(v) + origin in camera
         coordinates [m] (:func:`camera_vertex`); shape is the hand's (t0, t1, radius) or a cuboid's half size."""
         rot = mat33()
         pos = vec3()
         shape = vec3()
         if k == 0:
-            extent = hand_extent(hand_pos[f], hand_rot[f], height, vec3(R[0, 2], R[1, 2], R[2, 2]), radius, length,
-                                 near)
-            rot = hand_rot[f]
-            pos = hand_pos[f]
-            shape = vec3(extent[0], extent[1], radius)
+            extent = hand_extent_in(prisms, scene, f, height, R)
+            rot = scene.hand_rot[f]
+            pos = scene.hand_pos[f]
+            shape = vec3(extent[0], extent[1], prisms.radius)
         else:
-            rot = cuboid_rot[f, k - 1]
-            pos = cuboid_pos[f, k - 1]
-            shape = dtype(0.5) * cuboid_size[f, k - 1]
+            rot = scene.cuboid_rot[f, k - 1]
+            pos = scene.cuboid_pos[f, k - 1]
+            shape = dtype(0.5) * scene.cuboid_size[f, k - 1]
         zero = dtype(0.0)
         to_camera = wp.transpose(R)
         return to_camera * rot, to_camera * (pos - vec3(zero, zero, height)), shape
@@ -103,30 +137,21 @@ def _kernels(dtype, max_sides: int):
     @wp.kernel(module="unique", module_options={"optimization_level": OPTIMIZATION_LEVEL})
     def _project(
         # Model:
-        sides: wp.array(dtype=int),
-        radius: dtype,
-        length: dtype,
-        near: dtype,
+        prisms: Prisms,
         intrinsics: vec4,
         # Data in:
-        hand_pos_in: wp.array(dtype=vec3),
-        hand_rot_in: wp.array(dtype=mat33),
-        cuboid_pos_in: wp.array2d(dtype=vec3),
-        cuboid_rot_in: wp.array2d(dtype=mat33),
-        cuboid_size_in: wp.array2d(dtype=vec3),
-        height_in: wp.array(dtype=dtype),
-        elevation_in: wp.array(dtype=dtype),
+        scene: Scene,
         # Data out:
         pixel_out: wp.array3d(dtype=vec2),
     ):
         f, k = wp.tid()
-        n = sides[k]
-        axes, origin, shape = prism_frame(f, k, radius, length, near, hand_pos_in, hand_rot_in, cuboid_pos_in,
-                                          cuboid_rot_in, cuboid_size_in, height_in[0], camera_rotation(elevation_in[0]))
+        n = prisms.sides[k]
+        axes, origin, shape = prism_frame(prisms, scene, f, k, scene.height[0], camera_rotation(scene.elevation[0]))
         for v in range(2 * n):  # nothing carried from one vertex to the next: the adjoint replays each
             x = camera_vertex(k, v, n, axes, origin, shape)
             z = wp.max(x[2], dtype(_MIN_DEPTH))
-            pixel_out[f, k, v] = vec2(intrinsics[0] * x[0] / z + intrinsics[2], intrinsics[1] * x[1] / z + intrinsics[3])
+            pixel_out[f, k, v] = vec2(intrinsics[0] * x[0] / z + intrinsics[2],
+                                      intrinsics[1] * x[1] / z + intrinsics[3])
 
     @wp.func
     def outward(normal: vec3, anchor: vec3, centre: vec3) -> vec4:
@@ -137,29 +162,19 @@ def _kernels(dtype, max_sides: int):
     @wp.kernel(module="unique", module_options={"optimization_level": OPTIMIZATION_LEVEL, "enable_backward": False})
     def _face_planes(
         # Model:
-        sides: wp.array(dtype=int),
-        radius: dtype,
-        length: dtype,
-        near: dtype,
+        prisms: Prisms,
         # Data in:
-        hand_pos_in: wp.array(dtype=vec3),
-        hand_rot_in: wp.array(dtype=mat33),
-        cuboid_pos_in: wp.array2d(dtype=vec3),
-        cuboid_rot_in: wp.array2d(dtype=mat33),
-        cuboid_size_in: wp.array2d(dtype=vec3),
-        height_in: wp.array(dtype=dtype),
-        elevation_in: wp.array(dtype=dtype),
+        scene: Scene,
         # Data out:
         plane_out: wp.array3d(dtype=vec4),
         plane_count_out: wp.array2d(dtype=int),
         visible_out: wp.array2d(dtype=int),
     ):
         f, k = wp.tid()
-        n = sides[k]
-        h = height_in[0]
-        R = camera_rotation(elevation_in[0])
-        axes, origin, shape = prism_frame(f, k, radius, length, near, hand_pos_in, hand_rot_in, cuboid_pos_in,
-                                          cuboid_rot_in, cuboid_size_in, h, R)
+        n = prisms.sides[k]
+        h = scene.height[0]
+        R = camera_rotation(scene.elevation[0])
+        axes, origin, shape = prism_frame(prisms, scene, f, k, h, R)
         x = vertices()
         centre = vec3()
         deepest = dtype(1.0e30)
@@ -170,10 +185,9 @@ def _kernels(dtype, max_sides: int):
             deepest = wp.min(deepest, p[2])
         centre = centre / dtype(2 * n)
         if k == 0:
-            forward = vec3(R[0, 2], R[1, 2], R[2, 2])
-            visible_out[f, k] = int(hand_extent(hand_pos_in[f], hand_rot_in[f], h, forward, radius, length, near)[2])
+            visible_out[f, k] = int(hand_extent_in(prisms, scene, f, h, R)[2])
         else:
-            visible_out[f, k] = wp.where(deepest >= near, 1, 0)
+            visible_out[f, k] = wp.where(deepest >= prisms.near, 1, 0)
 
         cap = wp.cross(x[1] - x[0], x[2] - x[0])
         count = int(0)
@@ -194,40 +208,29 @@ def _kernels(dtype, max_sides: int):
     return _project, _face_planes
 
 
-def project(
-    sides: wp.array,
-    radius: float,
-    length: float,
-    near: float,
-    intrinsics,
-    scene: list,
-    pixel: wp.array,
-    pixel_grad: wp.array | None = None,
-    scene_grads: list | None = None,
-) -> None:
-    """Projected vertices (F, P, V) [px] of every prism into ``pixel`` (left as they are beyond each one's 2 ``sides[k]``).
+def project(prisms, intrinsics, scene, pixel: wp.array, pixel_grad: wp.array | None = None) -> None:
+    """Projected vertices (F, P, V) [px] of every prism into ``pixel`` (left as they are beyond each one's
+    2 ``sides[k]``).
 
-    ``scene`` holds the arrays hand_pos (F,), hand_rot (F,), cuboid_pos, cuboid_rot, cuboid_size (F, C) and the
-    camera's height [m] and elevation [rad] (1,); ``intrinsics`` is (fx, fy, cx, cy) [px]; ``radius``,
-    ``length`` [m] the hand prism's circumradius and length, ``near`` [m] the near plane. With ``pixel_grad``
-    (dL/d``pixel``) it runs the adjoint instead, adding dL/d``scene`` into ``scene_grads`` (the same arrays' shapes).
+    ``prisms``, ``scene``: the :func:`records` of the prisms and of the poses and camera; ``intrinsics`` is (fx, fy,
+    cx, cy) [px]. With ``pixel_grad`` (dL/d``pixel``) it runs the adjoint instead, adding dL/d``scene`` into the
+    gradients of its arrays.
     """
     kernel = _kernels(pixel.dtype._wp_scalar_type_, pixel.shape[2] // 2)[0]
-    model = [sides, radius, length, near, intrinsics]
-    adjoint = pixel_grad is not None
-    wp.launch(kernel, dim=pixel.shape[:2], inputs=[*model, *scene], outputs=[pixel], device=pixel.device,
-              adj_inputs=[None, 0.0, 0.0, 0.0, intrinsics, *scene_grads] if adjoint else [],
-              adj_outputs=[pixel_grad] if adjoint else [], adjoint=adjoint)
+    inputs = [prisms, intrinsics, scene]
+    if pixel_grad is None:
+        wp.launch(kernel, dim=pixel.shape[:2], inputs=inputs, outputs=[pixel], device=pixel.device)
+        return
+    no_adjoint = [type(prisms)(), type(intrinsics)(), type(scene)()]  # a struct's adjoint goes to its arrays' grads
+    wp.launch(kernel, dim=pixel.shape[:2], inputs=inputs, outputs=[pixel], device=pixel.device, adj_inputs=no_adjoint,
+              adj_outputs=[pixel_grad], adjoint=True)
 
 
-def face_planes(
-    sides: wp.array, radius: float, length: float, near: float, scene: list, plane: wp.array,
-    plane_count: wp.array, visible: wp.array,
-) -> None:
+def face_planes(prisms, scene, plane: wp.array, plane_count: wp.array, visible: wp.array) -> None:
     """The face planes (n, d) in camera coordinates (F, P, MAX_SIDES + 2) of every prism that face the camera
     (d < 0), in face order (the n sides, then the bottom and top caps), zeros after them, into ``plane``; their
     number (F, P) into ``plane_count``; 1 into ``visible`` (F, P) where a primitive is drawn (the hand: some of it
     in front of the near plane; a cuboid: every vertex). Arguments as :func:`project`."""
     kernel = _kernels(plane.dtype._wp_scalar_type_, plane.shape[2] - 2)[1]
-    wp.launch(kernel, dim=plane_count.shape, inputs=[sides, radius, length, near, *scene],
-              outputs=[plane, plane_count, visible], device=plane.device)
+    wp.launch(kernel, dim=plane_count.shape, inputs=[prisms, scene], outputs=[plane, plane_count, visible],
+              device=plane.device)

@@ -487,7 +487,8 @@ def _kernels(profiled: bool):
             v_row = float(i) + 0.5
             row = _LAYERS()
             bands = _EDGES()
-            row_partial, row_full = _row_classes(o, f, partial, edges, wp.vec2(lo[0], v_row), wp.vec2(hi[0], v_row), limit)
+            row_lo, row_hi = wp.vec2(lo[0], v_row), wp.vec2(hi[0], v_row)
+            row_partial, row_full = _row_classes(o, f, partial, edges, row_lo, row_hi, limit)
             if row_partial == 0 and row_full == 0 and full == 0:
                 _keep_bands(kept, f, i, tx, partial, bands)
                 continue

@@ -145,10 +145,9 @@ class _ProjectedPrisms(torch.autograd.Function):
         device = scene[0].device
         work = _PRISM_POOL.take((F, C, scene[0].dtype, device))
         copy_into(work.scene, scene)
-        model = (work.views["sides"], HAND_PRISM_RADIUS, HAND_LENGTH, NEAR_PLANE)
         with warp_scope(device):
-            prisms.project(*model, work.vec4(*camera_vec), work.views["scene"], work.views["pixel"])
-            prisms.face_planes(*model, work.views["scene"], *work.views["planes"])
+            prisms.project(work.prisms, work.vec4(*camera_vec), work.scene_struct, work.views["pixel"])
+            prisms.face_planes(work.prisms, work.scene_struct, *work.views["planes"])
         planes, visible = work.plane.clone(), work.visible != 0
         ctx.mark_non_differentiable(planes, visible)
         if any(ctx.needs_input_grad[1:]):
@@ -163,9 +162,8 @@ class _ProjectedPrisms(torch.autograd.Function):
         work.pixel_grad.copy_(pixel_grad)
         torch._foreach_zero_(work.scene_grad)
         with warp_scope(work.pixel.device):
-            prisms.project(work.views["sides"], HAND_PRISM_RADIUS, HAND_LENGTH, NEAR_PLANE,
-                           work.vec4(*ctx.camera_vec), work.views["scene"], work.views["pixel"],
-                           work.views["pixel_grad"], work.views["scene_grad"])
+            prisms.project(work.prisms, work.vec4(*ctx.camera_vec), work.scene_struct, work.views["pixel"],
+                           work.views["pixel_grad"])
         grads = [grad.clone() if needed else None for grad, needed in zip(work.scene_grad, ctx.needs_input_grad[1:])]
         _PRISM_POOL.give_back(work.key, work)  # ctx keeps it: a second backward pass (retain_graph) reads it again
         return None, *grads
@@ -173,9 +171,10 @@ class _ProjectedPrisms(torch.autograd.Function):
 
 class _PrismWorkspace:
     """The buffers of :class:`_ProjectedPrisms` for F frames and C cuboids of one dtype, allocated once, with
-    their Warp views (made once): the scene's tensors (``scene``, in the Function's input order) and their
-    gradients (``scene_grad``), the projected vertices ``pixel`` (F, P, V, 2) and their gradient, the face planes
-    ``plane`` (F, P, 26, 4) with their count (F, P) int32, ``visible`` (F, P) int32 and the prisms' sides (P,)."""
+    the kernels' records and views over them (made once): the scene's tensors (``scene``, in the Function's input
+    order) and their gradients (``scene_grad``) in the record ``scene_struct``, the ``prisms`` record (their sides
+    (P,), the hand prism's size, the near plane), the projected vertices ``pixel`` (F, P, V, 2) and their gradient,
+    the face planes ``plane`` (F, P, 26, 4) with their count (F, P) int32 and ``visible`` (F, P) int32."""
 
     def __init__(self, key: tuple):
         F, C, dtype, device = key
@@ -189,17 +188,19 @@ class _PrismWorkspace:
         self.plane = torch.zeros(F, 1 + C, _MAX_PLANES, 4, **like)
         self.plane_count = torch.zeros(F, 1 + C, dtype=torch.int32, device=device)
         self.visible = torch.zeros(F, 1 + C, dtype=torch.int32, device=device)
-        self.sides = torch.tensor([HAND_SEGMENTS] + [4] * C, dtype=torch.int32, device=device)
+        sides = torch.tensor([HAND_SEGMENTS] + [4] * C, dtype=torch.int32, device=device)
         scalar = wp.dtype_from_torch(dtype)
         vec2, vec3, vec4 = (wp.types.vector(n, scalar) for n in (2, 3, 4))
         self.vec4 = vec4
         mat33 = wp.types.matrix((3, 3), scalar)
-        types = (vec3, mat33, vec3, mat33, vec3, None, None)
+        Prisms, Scene = prisms.records(scalar)
         with warp_scope(device):
+            self.prisms = make_struct(Prisms, sides=as_warp(sides), radius=HAND_PRISM_RADIUS, length=HAND_LENGTH,
+                                      near=NEAR_PLANE)
+            self.scene_struct = make_struct(Scene, **{
+                name: as_warp(x, t, grad=g) for name, x, g, t in
+                zip(Scene.vars, self.scene, self.scene_grad, (vec3, mat33, vec3, mat33, vec3, None, None))})
             self.views = {
-                "sides": as_warp(self.sides),
-                "scene": [as_warp(x, t) for x, t in zip(self.scene, types)],
-                "scene_grad": [as_warp(x, t) for x, t in zip(self.scene_grad, types)],
                 "pixel": as_warp(self.pixel, vec2),
                 "pixel_grad": as_warp(self.pixel_grad, vec2),
                 "planes": [as_warp(self.plane, vec4), as_warp(self.plane_count), as_warp(self.visible)],
@@ -274,9 +275,9 @@ class _Workspace:
     with the kernels' structs and views over them (made once): ``outlines`` (:class:`raster.Outlines`:
     the visibility, projected vertices, hulls and face planes), ``kept`` (:class:`raster.Layers`:
     what the forward pass keeps for the backward one), the ``profiles`` (M rows; M = F with
-    targets, else 0) and their gradients ``profile_grads`` (:class:`raster.Profiles`, reading the targets at
-    the frame indices ``frame`` (F,) int32), and the backward pass's output ``vertex_grad`` (F, P, V, 2). The image-sized
-    masks and their gradient are the call's own.
+    targets, else 0) and their gradients ``profile_grads`` (:class:`raster.Profiles`, reading the
+    targets at the frame indices ``frame`` (F,) int32), and the backward pass's output
+    ``vertex_grad`` (F, P, V, 2). The image-sized masks and their gradient are the call's own.
 
     A call takes one from :data:`_POOL` and gives it back once its backward pass has run (at
     once without one).
