@@ -18,6 +18,7 @@ from typing import Any
 import warp as wp
 
 from .geometry import box_sdf, static_box_sdf
+from .records import records
 
 NUM_SAMPLE_POINTS = 62
 
@@ -61,13 +62,12 @@ def _point_impulse(kp: Any, kv: Any, mu: Any, d: Any, normal: Any, v: Any):
 def contact_impulses_func(dtype):
     """The ``wp.func`` ``add_contact_impulses`` for scalar type ``dtype`` (float32 or float64).
 
-    ``add_contact_impulses(kp, kv, mu, object_size, static_pos_in, static_rot_in,
-    static_size_in, object_pos, object_rot, object_vel, object_ang_vel, lane, lanes, b, n,
-    impulse_v_out, impulse_w_out)`` adds the contact impulses j_v [m/s^2] and j_w [rad/s^2] of
-    sample points ``lane``, ``lane + lanes``, ... on the cuboid of scene ``b`` at pose
-    (``object_pos``, ``object_rot``), moving with total velocities ``object_vel`` [m/s] and
-    ``object_ang_vel`` [rad/s], to ``impulse_v_out[b, n]`` and ``impulse_w_out[b, n]``
-    (statics: arrays (B, K)): ``lanes`` threads with lanes 0, 1, ... add all of them.
+    ``add_contact_impulses(physics, mu, scene, object_size, object_pos, object_rot, object_vel, object_ang_vel,
+    lane, lanes, b, n, scratch)`` adds the contact impulses j_v [m/s^2] and j_w [rad/s^2] of sample points
+    ``lane``, ``lane + lanes``, ... on the cuboid of size ``object_size`` of scene ``b`` (its statics in ``scene``,
+    :mod:`.records`) at pose (``object_pos``, ``object_rot``), moving with total velocities ``object_vel`` [m/s] and
+    ``object_ang_vel`` [rad/s], with ``physics``'s kp and kv and friction ``mu``, to ``scratch.impulse_v[b, n]`` and
+    ``scratch.impulse_w[b, n]``: ``lanes`` threads with lanes 0, 1, ... add all of them.
 
     It sums with ``wp.atomic_add`` and keeps no loop-carried locals, so its adjoint is exact
     inside a dynamic loop. Its replay (the forward pass re-run during backward) does nothing:
@@ -75,30 +75,13 @@ def contact_impulses_func(dtype):
     """
     vec3 = wp.types.vector(3, dtype)
     mat33 = wp.types.matrix((3, 3), dtype)
+    Physics, Scene, _, Scratch = records(dtype)
 
     @wp.func
-    def add_contact_impulses(
-        # Model:
-        kp: dtype,
-        kv: dtype,
-        mu: dtype,
-        object_size: vec3,
-        static_pos_in: wp.array2d(dtype=vec3),
-        static_rot_in: wp.array2d(dtype=mat33),
-        static_size_in: wp.array2d(dtype=vec3),
-        # Data in:
-        object_pos: vec3,
-        object_rot: mat33,
-        object_vel: vec3,
-        object_ang_vel: vec3,
-        lane: int,
-        lanes: int,
-        # Data out (entry [b, n]):
-        b: int,
-        n: int,
-        impulse_v_out: wp.array2d(dtype=vec3),
-        impulse_w_out: wp.array2d(dtype=vec3),
-    ):
+    def add_contact_impulses(physics: Physics, mu: dtype, scene: Scene, object_size: vec3, object_pos: vec3,
+                             object_rot: mat33, object_vel: vec3, object_ang_vel: vec3, lane: int, lanes: int, b: int,
+                             n: int, scratch: Scratch):
+        kp, kv = physics.kp, physics.kv
         # An obstacle farther from the centre than the bounding radius plus the reach of the
         # damping term pushes no point (m = 0 for all): skipping it changes neither the
         # impulses nor their gradients. The radius has 1% slack for rotations that are not
@@ -118,12 +101,12 @@ def contact_impulses_func(dtype):
                     q = object_rot * offset
                     v = object_vel + wp.cross(object_ang_vel, q)
                     j_ground = _point_impulse(kp, kv, mu, object_pos[2] + q[2], up, v)
-                    wp.atomic_add(impulse_v_out, b, n, j_ground)
-                    wp.atomic_add(impulse_w_out, b, n, wp.cross(q, j_ground))
-        for k in range(static_pos_in.shape[1]):
-            rot = static_rot_in[b, k]
-            half = dtype(0.5) * static_size_in[b, k]
-            offset = wp.transpose(rot) * (object_pos - static_pos_in[b, k])  # the centre, static frame
+                    wp.atomic_add(scratch.impulse_v, b, n, j_ground)
+                    wp.atomic_add(scratch.impulse_w, b, n, wp.cross(q, j_ground))
+        for k in range(scene.static_pos.shape[1]):
+            rot = scene.static_rot[b, k]
+            half = dtype(0.5) * scene.static_size[b, k]
+            offset = wp.transpose(rot) * (object_pos - scene.static_pos[b, k])  # the centre, static frame
             d_centre, _ = static_box_sdf(offset, half)
             if d_centre <= reach:
                 for i in range(lane, NUM_SAMPLE_POINTS, lanes):
@@ -131,30 +114,13 @@ def contact_impulses_func(dtype):
                     v = object_vel + wp.cross(object_ang_vel, q)
                     d, normal = static_box_sdf(offset + wp.transpose(rot) * q, half)
                     j_static = _point_impulse(kp, kv, mu, d, rot * normal, v)
-                    wp.atomic_add(impulse_v_out, b, n, j_static)
-                    wp.atomic_add(impulse_w_out, b, n, wp.cross(q, j_static))
+                    wp.atomic_add(scratch.impulse_v, b, n, j_static)
+                    wp.atomic_add(scratch.impulse_w, b, n, wp.cross(q, j_static))
 
     # Warp requires the replay to repeat the signature; the sums are already in place.
     @wp.func_replay(add_contact_impulses)
-    def _replay(
-        kp: dtype,
-        kv: dtype,
-        mu: dtype,
-        object_size: vec3,
-        static_pos_in: wp.array2d(dtype=vec3),
-        static_rot_in: wp.array2d(dtype=mat33),
-        static_size_in: wp.array2d(dtype=vec3),
-        object_pos: vec3,
-        object_rot: mat33,
-        object_vel: vec3,
-        object_ang_vel: vec3,
-        lane: int,
-        lanes: int,
-        b: int,
-        n: int,
-        impulse_v_out: wp.array2d(dtype=vec3),
-        impulse_w_out: wp.array2d(dtype=vec3),
-    ):
+    def _replay(physics: Physics, mu: dtype, scene: Scene, object_size: vec3, object_pos: vec3, object_rot: mat33,
+                object_vel: vec3, object_ang_vel: vec3, lane: int, lanes: int, b: int, n: int, scratch: Scratch):
         pass
 
     return add_contact_impulses
@@ -172,48 +138,23 @@ def _kernels(dtype):
     """The test kernels for scalar type ``dtype`` (``wp.float32`` or ``wp.float64``)."""
     vec3 = wp.types.vector(3, dtype)
     mat33 = wp.types.matrix((3, 3), dtype)
+    Physics, Scene, _, Scratch = records(dtype)
     add_contact_impulses = contact_impulses_func(dtype)
 
     @wp.kernel(module="unique")
     def _contact_impulses(
         # Model:
-        kp: dtype,
-        kv: dtype,
-        mu: dtype,
-        object_size_in: wp.array(dtype=vec3),
-        static_pos_in: wp.array2d(dtype=vec3),
-        static_rot_in: wp.array2d(dtype=mat33),
-        static_size_in: wp.array2d(dtype=vec3),
+        physics: Physics,
         # Data in:
-        object_pos_in: wp.array(dtype=vec3),
-        object_rot_in: wp.array(dtype=mat33),
-        object_vel_in: wp.array(dtype=vec3),
-        object_ang_vel_in: wp.array(dtype=vec3),
+        scene: Scene,
         lanes: int,
-        # Data out:
-        impulse_v_out: wp.array2d(dtype=vec3),
-        impulse_w_out: wp.array2d(dtype=vec3),
+        # Data in and out:
+        scratch: Scratch,
     ):
         b, lane = wp.tid()
-        add_contact_impulses(
-            kp,
-            kv,
-            mu,
-            object_size_in[b],
-            static_pos_in,
-            static_rot_in,
-            static_size_in,
-            object_pos_in[b],
-            object_rot_in[b],
-            object_vel_in[b],
-            object_ang_vel_in[b],
-            lane,
-            lanes,
-            b,
-            0,
-            impulse_v_out,
-            impulse_w_out,
-        )
+        add_contact_impulses(physics, physics.mu, scene, scene.object_size[b], scene.object_pos0[b],
+                             scene.object_rot0[b], scratch.own_vel[b, 0], scratch.own_ang_vel[b, 0], lane, lanes, b,
+                             0, scratch)
 
     @wp.kernel(module="unique")
     def _tip_distance(
@@ -232,35 +173,15 @@ def _kernels(dtype):
     return _contact_impulses, _tip_distance
 
 
-def contact_impulses(
-    kp: float,
-    kv: float,
-    mu: float,
-    object_size: wp.array,
-    static_pos: wp.array,
-    static_rot: wp.array,
-    static_size: wp.array,
-    object_pos: wp.array,
-    object_rot: wp.array,
-    object_vel: wp.array,
-    object_ang_vel: wp.array,
-    impulse_v_out: wp.array,
-    impulse_w_out: wp.array,
-    lanes: int = 1,
-):
-    """Contact impulses of B cuboids (arrays (B,), statics (B, K)) into the (B,) outputs, by
-    ``lanes`` threads per cuboid (each its share of the sample points)."""
-    num_scenes = object_pos.shape[0]
-    impulse_v_out.zero_()
-    impulse_w_out.zero_()
-    wp.launch(
-        _kernels(object_pos.dtype._wp_scalar_type_)[0],
-        dim=(num_scenes, lanes),
-        inputs=[kp, kv, mu, object_size, static_pos, static_rot, static_size]
-        + [object_pos, object_rot, object_vel, object_ang_vel, lanes],
-        outputs=[impulse_v_out.reshape((num_scenes, 1)), impulse_w_out.reshape((num_scenes, 1))],
-        device=object_pos.device,
-    )
+def contact_impulses(physics, scene, scratch, lanes: int = 1):
+    """Contact impulses of the B cuboids of ``scene`` (:mod:`.records`) at their initial poses, moving with the
+    velocities ``scratch.own_vel``, ``scratch.own_ang_vel`` [:, 0], into ``scratch.impulse_v``, ``impulse_w``
+    [:, 0] (zeroed first), by ``lanes`` threads per cuboid (each its share of the sample points)."""
+    scratch.impulse_v.zero_()
+    scratch.impulse_w.zero_()
+    kernel = _kernels(scene.object_size.dtype._wp_scalar_type_)[0]
+    wp.launch(kernel, dim=(scene.object_size.shape[0], lanes), inputs=[physics, scene, lanes], outputs=[scratch],
+              device=scene.object_size.device)
 
 
 def hand_tip_distance(

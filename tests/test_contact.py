@@ -5,6 +5,7 @@ import pytest
 import warp as wp
 from device_support import warp_devices
 from warpskill.kernels.contact import contact_impulses, hand_tip_distance
+from warpskill.kernels.records import records, zeros
 
 KP, KV, MU = 500.0, 5.0, 10.0
 
@@ -112,14 +113,22 @@ def _arrays(s: dict, scalar, requires_grad=False, device="cpu") -> dict:
 
 
 def _launch_impulses(a: dict, scalar, lanes: int = 1):
+    """The impulses (B,) of the cuboids of ``a`` at their poses and velocities, through the kernels' records."""
     vec3 = wp.types.vector(3, scalar)
+    Physics, Scene, _, Scratch = records(scalar)
     B, device = a["object_pos"].shape[0], a["object_pos"].device
-    jv = wp.zeros(B, dtype=vec3, requires_grad=a["object_pos"].requires_grad, device=device)
-    jw = wp.zeros(B, dtype=vec3, requires_grad=a["object_pos"].requires_grad, device=device)
-    contact_impulses(
-        KP, KV, MU, a["object_size"], a["static_pos"], a["static_rot"], a["static_size"],
-        a["object_pos"], a["object_rot"], a["object_vel"], a["object_ang_vel"], jv, jw, lanes,
-    )  # fmt: skip
+    jv, jw = (wp.zeros(B, dtype=vec3, requires_grad=a["object_pos"].requires_grad, device=device) for _ in range(2))
+    physics = Physics()
+    physics.kp, physics.kv, physics.mu = KP, KV, MU
+    scene = zeros(Scene, {name: (0,) * var.type.ndim for name, var in Scene.vars.items()}, device, False)
+    for name in ("object_size", "static_pos", "static_rot", "static_size"):
+        setattr(scene, name, a[name])
+    scene.object_pos0, scene.object_rot0 = a["object_pos"], a["object_rot"]
+    scratch = Scratch()  # state 0's velocities and impulses: (B, 1) views
+    for name, array in (("own_vel", a["object_vel"]), ("own_ang_vel", a["object_ang_vel"]), ("impulse_v", jv),
+                        ("impulse_w", jw)):
+        setattr(scratch, name, array.reshape((B, 1)))
+    contact_impulses(physics, scene, scratch, lanes)
     return jv, jw
 
 

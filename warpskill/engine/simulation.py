@@ -17,8 +17,9 @@ import torch
 import warp as wp
 
 from warpskill.engine.records import Rollout, SceneInputs
-from warpskill.engine.warp_bridge import WorkspacePool, as_warp, copy_into, warp_scope
-from warpskill.kernels.integrator import Scratch, Trajectory, gather_frames, rollout
+from warpskill.engine.warp_bridge import WorkspacePool, as_warp, copy_into, make_struct, warp_scope
+from warpskill.kernels.integrator import gather_frames, rollout, scratch, trajectory
+from warpskill.kernels.records import records
 
 __all__ = ["PhysicsConfig", "Rollout", "SceneInputs", "simulate", "substeps_per_frame"]
 
@@ -56,14 +57,13 @@ def substeps_per_frame(fps: float, config: PhysicsConfig = PhysicsConfig()) -> i
 
 
 class _Workspace:
-    """The rollout's arrays for one shape, allocated once and reused: the inputs ``inputs`` (a
-    :class:`~warpskill.engine.records.SceneInputs` of Torch tensors, B scenes, S steps, K statics)
-    with their Warp views ``arrays`` (by field name), the per-step states ``steps`` (B, S + 1),
-    the per-frame ones ``frames`` (B, N) and the ``scratch`` (:mod:`warpskill.kernels.integrator`),
-    with gradient buffers where ``requires_grad``, and Torch views of the inputs' gradients
-    ``input_grads`` and of the frames' ``frame_grads`` (:class:`Rollout` field order). A call
-    takes one from :data:`_POOL` and gives it back once its backward pass has run (at once
-    without one); the tape's ``zero()`` leaves the gradients clear for the next."""
+    """The rollout's arrays for one shape, allocated once and reused, in the kernels' records
+    (:mod:`warpskill.kernels.records`): the inputs ``inputs`` (a :class:`~warpskill.engine.records.SceneInputs`
+    of Torch tensors, B scenes, S steps, K statics) under the record ``scene``, the per-step states ``steps``
+    (B, S + 1), the per-frame ones ``frames`` (B, N) and the ``scratch``, with gradient buffers where
+    ``requires_grad``: Torch views of the inputs' gradients ``input_grads``, of the frames' ``frame_grads``
+    (:class:`Rollout` field order) and of all of them, ``grads``. A call takes one from :data:`_POOL` and gives
+    it back once its backward pass has run (at once without one), its gradients zeroed for the next."""
 
     def __init__(self, key: tuple):
         num_scenes, num_steps, num_frames, num_statics, scalar, device, requires_grad = self.key = key
@@ -75,14 +75,23 @@ class _Workspace:
             name: torch.zeros([sizes.get(n, n) for n in spec.shape], dtype=dtype, device=torch_device)
             for name, spec in SceneInputs.specs().items()
         })
-        self.arrays = {name: as_warp(tensor, value_types[SceneInputs.specs()[name].kind], requires_grad)
-                       for name, tensor in self.inputs.items()}
-        self.steps = Trajectory.zeros(num_scenes, num_steps + 1, scalar, device, requires_grad)
-        self.frames = Trajectory.zeros(num_scenes, num_frames, scalar, device, requires_grad)
-        self.scratch = Scratch.zeros(num_scenes, num_steps, scalar, device, requires_grad)
+        self.scene = make_struct(records(scalar).Scene, **{
+            name: as_warp(tensor, value_types[SceneInputs.specs()[name].kind], requires_grad)
+            for name, tensor in self.inputs.items()})
+        self.steps = trajectory(num_scenes, num_steps + 1, scalar, device, requires_grad)
+        self.frames = trajectory(num_scenes, num_frames, scalar, device, requires_grad)
+        self.scratch = scratch(num_scenes, num_steps, scalar, device, requires_grad)
         if requires_grad:
-            self.input_grads = [wp.to_torch(array.grad, requires_grad=False) for array in self.arrays.values()]
-            self.frame_grads = [wp.to_torch(array.grad, requires_grad=False) for array in _frame_arrays(self.frames)]
+            self.input_grads = _grads(self.scene, SceneInputs.specs())
+            self.frame_grads = _grads(self.frames, Rollout.names())
+            names = records(scalar).Trajectory.vars
+            self.grads = [*self.input_grads, *_grads(self.steps, names), *self.frame_grads,
+                          *_grads(self.scratch, records(scalar).Scratch.vars)]
+
+
+def _grads(record, names) -> list[torch.Tensor]:
+    """Torch views of the gradients of the arrays ``names`` of the struct instance ``record``."""
+    return [wp.to_torch(getattr(record, name).grad, requires_grad=False) for name in names]
 
 
 _POOL = WorkspacePool(_Workspace)
@@ -90,8 +99,8 @@ _POOL = WorkspacePool(_Workspace)
 
 def _launch(config: PhysicsConfig, steps_per_frame: int, dt: float, inputs: SceneInputs, requires_grad: bool):
     """Run the rollout of ``inputs`` (copied into a workspace from the pool); returns the tape and
-    the :class:`_Workspace` (its ``frames`` the per-frame :class:`Trajectory`). Launches are
-    recorded on the tape if ``requires_grad``."""
+    the :class:`_Workspace` (its ``frames`` the per-frame trajectory). Launches are recorded on the
+    tape if ``requires_grad``."""
     wp.init()
     device = inputs.hand_pos0.device
     scalar = wp.float64 if inputs.hand_pos0.dtype == torch.float64 else wp.float32
@@ -100,22 +109,21 @@ def _launch(config: PhysicsConfig, steps_per_frame: int, dt: float, inputs: Scen
            str(wp.device_from_torch(device)), requires_grad)
     work = _POOL.take(key)
     copy_into(work.inputs.tensors(), inputs.tensors())
+    physics = make_struct(records(scalar).Physics, dt=dt, **{
+        name: getattr(config, name) for name in ("kp", "kv", "mu", "gravity", "free_damping", "grasp_decay",
+                                                 "grasp_tau")})
     tape = wp.Tape()
     with warp_scope(device), tape if requires_grad else contextlib.nullcontext():
-        work.scratch.clear()
-        rollout(config, dt, steps=work.steps, scratch=work.scratch, **work.arrays)
+        work.scratch.impulse_v.zero_()
+        work.scratch.impulse_w.zero_()
+        rollout(physics, work.scene, work.steps, work.scratch)
         gather_frames(steps_per_frame, work.steps, work.frames)
     return tape, work
 
 
-def _frame_arrays(frames: Trajectory) -> list[wp.array]:
-    """The frames' arrays in :class:`Rollout` field order."""
-    return [getattr(frames, name) for name in Rollout.names()]
-
-
-def _to_torch(frames: Trajectory) -> tuple[torch.Tensor, ...]:
-    """Torch copies of the frames (the workspace is reused)."""
-    return tuple(wp.to_torch(array, requires_grad=False).clone() for array in _frame_arrays(frames))
+def _to_torch(frames) -> tuple[torch.Tensor, ...]:
+    """Torch copies of the frames' arrays in :class:`Rollout` field order (the workspace is reused)."""
+    return tuple(wp.to_torch(getattr(frames, name), requires_grad=False).clone() for name in Rollout.names())
 
 
 class _Simulate(torch.autograd.Function):
@@ -133,13 +141,13 @@ class _Simulate(torch.autograd.Function):
     def backward(ctx, *grad_outputs: torch.Tensor):
         work = ctx.work
         seeded = [(seed, grad) for seed, grad in zip(work.frame_grads, grad_outputs) if grad is not None]
-        if seeded:  # into the frames' own .grad buffers (zeroed by the last tape.zero())
+        if seeded:  # into the frames' own .grad buffers (zeroed after the last backward pass)
             copy_into(*zip(*seeded))
         with warp_scope(ctx.device):
             ctx.tape.backward()
             input_grads = [grad.clone() if needed else None
                            for grad, needed in zip(work.input_grads, ctx.needs_input_grad[3:])]
-            ctx.tape.zero()
+            torch._foreach_zero_(work.grads)  # the tape's zero() leaves a struct's arrays' gradients
         _POOL.give_back(work.key, work)
         return (None, None, None, *input_grads)
 
