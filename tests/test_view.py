@@ -18,8 +18,8 @@ from warpskill.cli.common import installed
 from warpskill.cli.view import view_folder
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.replay import Replay
+from warpskill.contract.vocabulary import MODEL_HAND_LENGTH, MODEL_HAND_RADIUS
 from warpskill.synthetic import make_demonstration
-from warpskill.visual.rerun_entities import HAND_LENGTH, HAND_RADIUS
 from warpskill.visual.rerun_scene import CLASS_IDS, rendered_labels
 from warpskill.visual.rerun_view import view
 
@@ -148,10 +148,10 @@ def test_scene_without_robot(tmp_path, demo, recon):
     hand = data["/world/hand"]
     axis = quat_to_matrix(one_per_row(hand["Cylinders3D:quaternions"]))[:, :, 2]
     assert np.allclose(axis, recon.hand_rot[:, :, 2], atol=1e-5)
-    tip = one_per_row(hand["Cylinders3D:centers"]) - axis * HAND_LENGTH / 2
+    tip = one_per_row(hand["Cylinders3D:centers"]) - axis * MODEL_HAND_LENGTH / 2
     assert np.allclose(tip, recon.hand_pos, atol=1e-5)
-    assert np.allclose(one_per_row(hand["Cylinders3D:lengths"]), HAND_LENGTH)
-    assert np.allclose(one_per_row(hand["Cylinders3D:radii"]), HAND_RADIUS)
+    assert np.allclose(one_per_row(hand["Cylinders3D:lengths"]), MODEL_HAND_LENGTH)
+    assert np.allclose(one_per_row(hand["Cylinders3D:radii"]), MODEL_HAND_RADIUS)
     colors = np.array([c[0] for c in hand["Cylinders3D:colors"]])
     held, free = recon.grasped > 0.5, recon.grasped < 0.5
     assert held.any() and free.any()

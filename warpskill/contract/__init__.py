@@ -2,8 +2,9 @@
 
 Owns the demonstration and reconstruction files (:class:`Demonstration`,
 :class:`Reconstruction`, their ``.npz`` I/O and checks), the action names, the camera
-intrinsics, the contact-signal filter, the paper's success criteria (:func:`evaluate`) and the
-skill and layout records (:class:`Skill`, :class:`Layout`).
+intrinsics, the contact-signal filter, the paper's success criteria (:func:`evaluate`), the
+skill and layout records (:class:`Skill`, :class:`Layout`) and the scene's vocabulary
+(:mod:`.vocabulary`: the masks' role names, the model hand's size).
 May import NumPy and the standard library only: loading a file, judging a reconstruction
 or reading annotations never pulls in torch or Warp.
 """

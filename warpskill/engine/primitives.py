@@ -16,13 +16,9 @@ import math
 import numpy as np
 import torch
 
+from warpskill.contract.vocabulary import MODEL_HAND_LENGTH as HAND_LENGTH  # local z in [0, HAND_LENGTH]
+from warpskill.contract.vocabulary import MODEL_HAND_RADIUS as HAND_RADIUS
 from warpskill.engine.projection import camera_rotation
-
-HAND_LENGTH = 0.40
-"""Length of the hand cylinder [m]; it occupies local z in [0, HAND_LENGTH]."""
-
-HAND_RADIUS = 0.04
-"""Radius of the hand cylinder [m]."""
 
 HAND_SEGMENTS = 24
 """Sides of the prism that stands in for the hand cylinder."""

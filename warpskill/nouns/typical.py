@@ -47,7 +47,9 @@ adults' hand dimensions; the US Army's ANSUR II survey, Gordon et al. 2014, agre
 
 HAND_LENGTH = 0.19
 """[m] typical adult hand length (wrist crease to middle fingertip), rounded: men's median 18.9
-cm, women's 17.4 cm (Pheasant and Haslegrave, *Bodyspace*, 3rd ed., 2006; ANSUR II, 2014)."""
+cm, women's 17.4 cm (Pheasant and Haslegrave, *Bodyspace*, 3rd ed., 2006; ANSUR II, 2014).
+A real hand; the model's hand cylinder (with the forearm) is
+:data:`warpskill.contract.vocabulary.MODEL_HAND_LENGTH`."""
 
 SIZES: dict[str, TypicalSize] = {
     noun: TypicalSize(height / 100, width / 100, depth / 100, source)

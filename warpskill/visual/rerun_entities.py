@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from warpskill.contract.vocabulary import MODEL_HAND_LENGTH, MODEL_HAND_RADIUS
 from warpskill.geometry import quaternions
 from warpskill.media import (
     GRIPPER_COLOR,
@@ -24,13 +25,7 @@ from warpskill.media import (
 )
 from warpskill.visual.rerun_scene import CLASS_IDS, SceneData
 
-__all__ = ["HAND_LENGTH", "HAND_RADIUS", "blueprint", "log_scene"]
-
-HAND_LENGTH = 0.40
-"""Length [m] of the hand cylinder (``docs/formats.md``)."""
-
-HAND_RADIUS = 0.04
-"""Radius [m] of the hand cylinder (``docs/formats.md``)."""
+__all__ = ["blueprint", "log_scene"]
 
 GROUND_COLOR = (110, 110, 100, 170)
 """RGBA of the ground plane."""
@@ -131,8 +126,8 @@ def _log_hand(rr, rec, index, pos, rot, colors) -> None:
     rec.log("world/hand", rr.Cylinders3D.from_fields(fill_mode="solid", labels=["hand"], show_labels=False),
             static=True)
     rec.send_columns("world/hand", indexes=index, columns=rr.Cylinders3D.columns(
-        centers=pos + rot[:, :, 2] * (HAND_LENGTH / 2), quaternions=_xyzw(rot),
-        lengths=np.full(n, HAND_LENGTH), radii=np.full(n, HAND_RADIUS), colors=colors))
+        centers=pos + rot[:, :, 2] * (MODEL_HAND_LENGTH / 2), quaternions=_xyzw(rot),
+        lengths=np.full(n, MODEL_HAND_LENGTH), radii=np.full(n, MODEL_HAND_RADIUS), colors=colors))
 
 
 def _log_box_track(rr, rec, entity, index, pos, rot, size, color, label, *, fill_mode="solid") -> None:
