@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from warpskill import assets
-from warpskill.data.box_annotations import read_something_else, something_else_demonstration
+from warpskill.data.boxes.something_else import read_something_else, something_else_demonstration
 from warpskill.robot.scene_config import (
     RobotSceneConfig,
     SceneConfigError,

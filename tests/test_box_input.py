@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from warpskill.data.box_annotations import box_masks
+from warpskill.data.boxes.something_else import box_masks
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.guess import initial_guess
 from warpskill.optimizer.inputs import drawn_from_boxes, working_inputs

@@ -18,9 +18,9 @@ from warpskill.data.contact import (
     estimate_contact,
     extend_to_ends,
     filter_contact,
-    read_detections,
     smooth_detections,
 )
+from warpskill.data.readers.contact_files import read_detections
 
 
 def _object(xs, size=6, h=20, w=60):

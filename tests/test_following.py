@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from warpskill.data.following import follow_objects, follow_outlines
+from warpskill.data.footage.following import follow_objects, follow_outlines
 
 FOOTAGE = Path(__file__).resolve().parents[2] / "shared" / "data" / "real_footage"
 MIN_IOU = 0.7  # per frame, mask vs truth (the followers' masks are within 1-2 px of the truth)
@@ -104,7 +104,9 @@ def test_static_object_follows_the_camera():
 @pytest.mark.skipif(not FOOTAGE.is_dir(), reason="no ../shared/data/real_footage")
 @pytest.mark.parametrize("clip_id", ["862", "151201"])
 def test_object_stays_on_its_box_in_real_clips(clip_id):
-    from warpskill.bench.footage import SAME_OBJECT_IOU, box_ious, hurried_outline, read_footage
+    from warpskill.bench.footage import SAME_OBJECT_IOU, hurried_outline
+    from warpskill.data.boxes.clips import read_footage
+    from warpskill.data.boxes.overlap import box_ious
 
     (clip,) = read_footage(FOOTAGE, [clip_id])
     key, key_masks = hurried_outline(clip)

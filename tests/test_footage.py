@@ -12,12 +12,15 @@ import cv2
 import numpy as np
 import pytest
 
-from warpskill.bench.footage import box_iou, box_ious, hurried_outline, mask_box, read_footage, score_clip
+from warpskill.bench.footage import hurried_outline, score_clip
 from warpskill.contract import DemonstrationError
-from warpskill.data.contact import IN_CONTACT, NO_CONTACT, UNKNOWN, detections_from_landmarks
-from warpskill.data.footage import MODEL_HAND_LENGTH, MODEL_HAND_WIDTH, model_hand_masks
-from warpskill.data.readers import is_image_sequence, read_video
-from warpskill.engine.primitives import HAND_LENGTH, HAND_RADIUS
+from warpskill.contract.vocabulary import MODEL_HAND_LENGTH, MODEL_HAND_RADIUS
+from warpskill.data.boxes.clips import read_footage
+from warpskill.data.boxes.overlap import box_iou, box_ious, mask_box
+from warpskill.data.contact import IN_CONTACT, NO_CONTACT, UNKNOWN
+from warpskill.data.footage.model_hand import model_hand_masks
+from warpskill.data.footage.touch import detections_from_landmarks
+from warpskill.data.readers.video import is_image_sequence, read_video
 from warpskill.nouns.typical import HAND_BREADTH
 
 FOOTAGE = Path(__file__).resolve().parents[2] / "shared" / "data" / "real_footage"
@@ -38,14 +41,13 @@ def _hand(wrist=(100.0, 150.0), breadth=20.0, pointing=(0.0, -1.0)):
 
 
 def test_the_model_hand_is_the_cylinder_at_the_scale_the_palm_gives():
-    assert MODEL_HAND_WIDTH == pytest.approx(2 * HAND_RADIUS) and MODEL_HAND_LENGTH == pytest.approx(HAND_LENGTH)
     points = _hand(wrist=(100.0, 200.0), breadth=60.0)  # a near hand: 40 cm of arm reach past the image's bottom
     breadth = np.linalg.norm(points[5] - points[17])
     masks = model_hand_masks(np.stack([points, np.full((21, 2), np.nan)]), (240, 200))
     assert not masks[1].any()  # no landmarks, no hand
     rows = masks[0].sum(axis=1)
     band = rows[rows > 0]
-    assert np.median(band) == pytest.approx(breadth * MODEL_HAND_WIDTH / HAND_BREADTH, abs=2)  # edges drawn
+    assert np.median(band) == pytest.approx(breadth * 2 * MODEL_HAND_RADIUS / HAND_BREADTH, abs=2)  # edges drawn
     tip_row = np.flatnonzero(rows)[0]
     assert abs(tip_row - points[[4, 8, 12, 16, 20], 1].min()) <= 1.5  # from the farthest fingertip ...
     assert rows[-1] > 0  # ... through the wrist, on along the forearm to the border

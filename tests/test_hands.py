@@ -8,9 +8,9 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 import pytest
 
-from warpskill.data import hand_landmarks, hand_regions
-from warpskill.data.hand_landmarks import HandTracks, find_hands, hand_model_path
-from warpskill.data.hands import choose_hand, hand_masks, hand_measurements
+from warpskill.data.footage import hand_landmarks, hand_regions
+from warpskill.data.footage.hand_landmarks import HandTracks, find_hands, hand_model_path
+from warpskill.data.footage.hands import choose_hand, hand_masks, hand_measurements
 
 FOOTAGE = Path(__file__).resolve().parents[2] / "shared" / "data" / "real_footage"
 
@@ -69,7 +69,7 @@ def arm_clip(n=24, size=(120, 200)):
 
 
 def test_a_moving_arm_coming_in_from_the_border_is_found_where_mediapipe_saw_no_hand():
-    from warpskill.bench.footage import box_ious, mask_box
+    from warpskill.data.boxes.overlap import box_ious, mask_box
 
     frames, truth = arm_clip()
     regions = hand_regions.hand_regions(frames, no_tracks(len(frames)))
@@ -245,13 +245,14 @@ def real_clips():
     pytest.importorskip("mediapipe")
     if not (FOOTAGE / "annotations.json").is_file():
         pytest.skip(f"no real footage at {FOOTAGE}")
-    from warpskill.bench.footage import read_footage
+    from warpskill.data.boxes.clips import read_footage
 
     return {clip.clip_id: clip for clip in read_footage(FOOTAGE, ["2", "3201", "80962"])}
 
 
 def test_the_hand_is_found_in_a_real_clip(real_clips):
-    from warpskill.bench.footage import SAME_OBJECT_IOU, box_ious
+    from warpskill.bench.footage import SAME_OBJECT_IOU
+    from warpskill.data.boxes.overlap import box_ious
 
     clip = real_clips["2"]
     landmarks = choose_hand(find_hands(clip.frames))
@@ -275,7 +276,8 @@ def test_no_hand_is_found_in_a_real_clip_without_one(real_clips):
 
 
 def test_a_finger_mediapipe_misses_is_found_by_its_skin_and_motion(real_clips):
-    from warpskill.bench.footage import SAME_OBJECT_IOU, box_ious
+    from warpskill.bench.footage import SAME_OBJECT_IOU
+    from warpskill.data.boxes.overlap import box_ious
 
     clip = real_clips["80962"]  # a finger alone pokes a toy frog, in a dim light
     tracks = find_hands(clip.frames)

@@ -9,7 +9,7 @@ import pytest
 from test_something_else import _messy, _write
 
 from warpskill.contract.demonstration import Demonstration, DemonstrationError
-from warpskill.data.box_annotations import (
+from warpskill.data.boxes.something_else import (
     read_something_else,
     something_else_demonstration,
 )

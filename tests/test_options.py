@@ -21,7 +21,7 @@ import pytest
 from warpskill.cli import main
 from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.reconstruction import Reconstruction
-from warpskill.data.box_annotations import read_something_else, something_else_demonstration
+from warpskill.data.boxes.something_else import read_something_else, something_else_demonstration
 from warpskill.optimizer import LossWeights, OptimizeConfig, OptimizeOptions, optimize
 from warpskill.synthetic import make_demonstration
 

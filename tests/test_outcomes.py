@@ -1,6 +1,8 @@
 """Per-case outcome tables: written, read back, re-evaluated from an output folder, and the flips since a baseline."""
 
 import json
+import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,6 +21,7 @@ from warpskill.bench.outcomes import (
 )
 from warpskill.bench.report import record_outcomes
 from warpskill.bench.second_opinion import find_tools, read_truth
+from warpskill.bench.settings import TOOLS_VARIABLE, SettingError
 from warpskill.cli import main
 
 
@@ -113,20 +116,26 @@ def test_a_baseline_that_is_no_outcome_table_is_named(tmp_path):
         load_outcomes(tmp_path / "missing")
 
 
-def test_second_opinion_is_skipped_cleanly_without_the_tools(tmp_path, capsys):
+def test_second_opinion_is_skipped_cleanly_without_the_tools(tmp_path, capsys, monkeypatch):
     assert find_tools(tmp_path) is None
     assert main(["bench", "second-opinion", "-o", str(tmp_path / "out"), "--tools", str(tmp_path)]) == 1
     assert "second opinion skipped" in capsys.readouterr().out
     assert not (tmp_path / "out").exists()
+    monkeypatch.delenv(TOOLS_VARIABLE, raising=False)  # no folder given: one line naming the option and the variable
+    with pytest.raises(SettingError, match=f"--tools or set \\${TOOLS_VARIABLE}"):
+        find_tools()
+    assert main(["bench", "second-opinion", "-o", str(tmp_path / "out")]) == 1
+    assert f"${TOOLS_VARIABLE}" in capsys.readouterr().out
 
 
 @pytest.mark.slow
 def test_the_second_opinion_annotations_read_through_the_real_reader(tmp_path):
-    tools = find_tools()
+    folder = os.environ.get(TOOLS_VARIABLE) or Path(__file__).resolve().parents[2] / "shared" / "tools"
+    tools = find_tools(folder) if Path(folder).is_dir() else None
     if tools is None:
         pytest.skip("the shared tools synthdemo.py / synth_sthelse.py are not here")
     from warpskill.bench.second_opinion import generate_annotations
-    from warpskill.data.box_annotations import read_something_else, something_else_demonstration
+    from warpskill.data.boxes.something_else import read_something_else, something_else_demonstration
 
     annotations = generate_annotations(tools, tmp_path, ["push_left_to_right"], [3])
     [video] = read_something_else(annotations / "annotations.json", annotations / "phases.csv",

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from warpskill.contract.demonstration import DemonstrationError
-from warpskill.data.propagation import propagate_masks, read_labelme, read_polygons
+from warpskill.data.footage.propagation import propagate_masks
+from warpskill.data.readers.polygons import read_labelme, read_polygons
 
 MEAN_IOU = 0.9  # measured (seeds 0-2, refined): hand 0.99, object 0.99; 24 frames from the middle one
 

@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 from warpskill.contract.demonstration import DemonstrationError
-from warpskill.data.readers import (
+from warpskill.data.readers.mask_files import (
     davis_palette,
     read_label_images,
     read_mask_folders,
-    read_video,
     read_video_demonstration,
 )
+from warpskill.data.readers.video import read_video
 
 N, H, W = 8, 32, 48
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from warpskill.contract.actions import ACTIONS
-from warpskill.data.box_annotations import something_else_demonstration
+from warpskill.data.boxes.something_else import something_else_demonstration
 from warpskill.synthetic import make_demonstration, real_scenarios
 from warpskill.synthetic.scripts import ASKEW_OBJECT_YAW, NARROW_STATIC, TALL_THIN, TURNED_STATIC_YAW, Variant
 from warpskill.synthetic.spoil import (

@@ -17,7 +17,8 @@ import pytest
 from warpskill.cli import main
 from warpskill.cli.common import installed
 from warpskill.contract import Demonstration, Reconstruction, evaluate
-from warpskill.data import contact_sheet, read_recording
+from warpskill.data import read_recording
+from warpskill.visual import contact_sheet
 from warpskill.synthetic import make_demonstration
 
 SEED, KEY_FRAME = 1, 6  # annotate a frame where hand and box are both in view

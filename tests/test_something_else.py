@@ -12,7 +12,7 @@ from warpskill.bench.rulers import hand_ruled_size
 from warpskill.cli import main
 from warpskill.contract.demonstration import DemonstrationError
 from warpskill.contract.reconstruction import Reconstruction
-from warpskill.data.box_annotations import (
+from warpskill.data.boxes.something_else import (
     box_masks,
     read_something_else,
     something_else_demonstration,
@@ -148,7 +148,7 @@ def test_the_development_videos_all_load():
 
 def test_each_video_is_one_run_case_its_failure_one_line_and_its_traceback_kept_where_it_ran(tmp_path):
     from warpskill.bench.outcomes import CaseFailed
-    from warpskill.bench.something_else import Reconstructed, run_case
+    from warpskill.bench.cases import Reconstructed, run_case
     from warpskill.contract.results_folder import ResultsFolder
     from warpskill.synthetic import make_demonstration
 

@@ -2,12 +2,12 @@
 
 A folder in the real-footage format (``frames/<id>/NNNN.jpg`` and ``annotations.json``,
 Something-Else boxes per frame; ``docs/formats.md``) is read clip by clip
-(:func:`read_footage`). Each clip is outlined as a hurried user would
+(:func:`warpskill.data.boxes.clips.read_footage`). Each clip is outlined as a hurried user would
 (:func:`hurried_outline`: the object's and static objects' boxes, as rectangles, on the
 middle frame that boxes both the hand and the object; the hand is not outlined), its masks
 are made as ``warpskill run`` makes them, and each mask is compared with the annotators'
-box in every frame that boxes it (:func:`box_ious`: the IoU of the mask's bounding box with
-the box; an empty mask counts 0).
+box in every frame that boxes it (:func:`warpskill.data.boxes.overlap.box_ious`: the IoU of
+the mask's bounding box with the box; an empty mask counts 0).
 """
 
 from __future__ import annotations
@@ -15,94 +15,23 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
-from pathlib import Path
+import time
 
 import numpy as np
 
+from warpskill.bench.outcomes import CaseOutcome, failed_case
+from warpskill.bench.report import record_outcomes, show
 from warpskill.contract.demonstration import DemonstrationError
-from warpskill.data.box_annotations import read_box_annotations
-from warpskill.data.readers import read_video
+from warpskill.contract.vocabulary import HAND, OBJECT, STATIC, role_kind
+from warpskill.data.boxes.clips import FootageClip, read_footage
+from warpskill.data.boxes.overlap import box_ious
+from warpskill.data.footage.clip_masks import footage_masks
+from warpskill.progress import progress_bar
 
 logger = logging.getLogger(__name__)
 
-ANNOTATIONS = "annotations.json"
 SAME_OBJECT_IOU = 0.5
 """Box IoU from which a mask counts as on its object (the usual detection threshold)."""
-
-
-@dataclasses.dataclass(frozen=True)
-class FootageClip:
-    """One annotated real clip.
-
-    Attributes:
-        clip_id: the clip's id (its folder under ``frames/``).
-        frames: (N, H, W, 3) uint8 RGB frames.
-        boxes: role (``hand``, ``object``, ``static_0``, ...) -> (N, 4) boxes (x0, y0, x1,
-            y1) [px], NaN in frames where the annotation does not box it.
-        annotated: (N,) bool, frames the annotation covers (a frame without a hand box
-            there is a frame where the annotators saw no hand).
-        noun: the manipulated object's noun, or None.
-    """
-
-    clip_id: str
-    frames: np.ndarray
-    boxes: dict[str, np.ndarray]
-    annotated: np.ndarray
-    noun: str | None
-
-
-def read_footage(folder: str | os.PathLike, clips: list[str] | None = None) -> list[FootageClip]:
-    """The clips of a real-footage folder (all, or those named in ``clips``), in the file's order.
-
-    Raises:
-        FileNotFoundError: no ``annotations.json`` or no frames folder for a clip.
-        DemonstrationError: an annotation file that is not ``{id: [frame entries]}``, a
-            clip id it lacks, or a clip folder without frames ``0001.jpg``, ...
-    """
-    folder = Path(folder)
-    annotations = read_box_annotations(folder / ANNOTATIONS)
-    missing = sorted(set(clips or ()) - set(annotations))
-    if missing:
-        raise DemonstrationError(f"{folder / ANNOTATIONS}: no clip {', '.join(missing)}")
-    return [_clip(folder, clip_id, annotations[clip_id]) for clip_id in (clips or list(annotations))]
-
-
-def _clip(folder: Path, clip_id: str, entries: list[dict]) -> FootageClip:
-    """One clip's frames and boxes."""
-    frames, _ = read_video(folder / "frames" / clip_id / "%04d.jpg")
-    n = len(frames)
-    boxes: dict[str, np.ndarray] = {}
-    annotated = np.zeros(n, dtype=bool)
-    noun = None
-    for entry in entries:
-        k = int(Path(entry["name"]).stem) - 1
-        if not 0 <= k < n:
-            continue
-        annotated[k] = True
-        noun = noun or next(iter(entry.get("gt_placeholders") or []), None)
-        for label in entry.get("labels", []):
-            role = _role(label.get("gt_annotation", ""))
-            if role is None:
-                continue
-            box = label["box2d"]
-            boxes.setdefault(role, np.full((n, 4), np.nan))[k] = (box["x1"], box["y1"], box["x2"], box["y2"])
-    boxes = {role: boxes[role] for role in sorted(boxes, key=_role_order)}
-    return FootageClip(clip_id, frames, boxes, annotated, noun)
-
-
-def _role(name: str) -> str | None:
-    """``object hand`` -> hand, ``object 0`` -> object, ``object k`` -> static_{k-1}."""
-    if name == "object hand":
-        return "hand"
-    parts = name.split()
-    if len(parts) == 2 and parts[0] == "object" and parts[1].isdigit():
-        k = int(parts[1])
-        return "object" if k == 0 else f"static_{k - 1}"
-    return None
-
-
-def _role_order(role: str) -> tuple[int, int]:
-    return (0, 0) if role == "hand" else (1, 0) if role == "object" else (2, int(role.split("_")[1]))
 
 
 def hurried_outline(clip: FootageClip) -> tuple[int, dict[str, np.ndarray]]:
@@ -115,18 +44,18 @@ def hurried_outline(clip: FootageClip) -> tuple[int, dict[str, np.ndarray]]:
     Raises:
         DemonstrationError: no frame boxes both the hand and the object.
     """
-    both = np.isfinite(clip.boxes.get("hand", np.full((len(clip.frames), 4), np.nan))[:, 0])
-    both &= np.isfinite(clip.boxes["object"][:, 0]) if "object" in clip.boxes else False
+    both = np.isfinite(clip.boxes.get(HAND, np.full((len(clip.frames), 4), np.nan))[:, 0])
+    both &= np.isfinite(clip.boxes[OBJECT][:, 0]) if OBJECT in clip.boxes else False
     candidates = np.flatnonzero(both)
     if not len(candidates):
-        candidates = np.flatnonzero(np.isfinite(clip.boxes["object"][:, 0])) if "object" in clip.boxes else candidates
+        candidates = np.flatnonzero(np.isfinite(clip.boxes[OBJECT][:, 0])) if OBJECT in clip.boxes else candidates
     if not len(candidates):
         raise DemonstrationError(f"clip {clip.clip_id}: no frame boxes the object")
     frame = int(candidates[len(candidates) // 2])
     h, w = clip.frames.shape[1:3]
     masks = {}
     for role, boxes in clip.boxes.items():
-        if role == "hand" or not np.isfinite(boxes[frame, 0]):
+        if role == HAND or not np.isfinite(boxes[frame, 0]):
             continue
         x0, y0, x1, y1 = np.clip(boxes[frame], 0, [w, h, w, h])
         mask = np.zeros((h, w), dtype=bool)
@@ -134,34 +63,6 @@ def hurried_outline(clip: FootageClip) -> tuple[int, dict[str, np.ndarray]]:
         if mask.any():
             masks[role] = mask
     return frame, masks
-
-
-def mask_box(mask: np.ndarray) -> np.ndarray:
-    """The (x0, y0, x1, y1) bounding box [px] of an (H, W) mask; NaN when empty."""
-    ys, xs = np.nonzero(mask)
-    if not len(xs):
-        return np.full(4, np.nan)
-    return np.array([xs.min(), ys.min(), xs.max() + 1, ys.max() + 1], dtype=float)
-
-
-def box_iou(a: np.ndarray, b: np.ndarray) -> float:
-    """IoU of two (x0, y0, x1, y1) boxes; 0 when either is NaN (empty)."""
-    if not (np.isfinite(a).all() and np.isfinite(b).all()):
-        return 0.0
-    w = min(a[2], b[2]) - max(a[0], b[0])
-    h = min(a[3], b[3]) - max(a[1], b[1])
-    inter = max(w, 0.0) * max(h, 0.0)
-    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
-    return float(inter / union) if union > 0 else 0.0
-
-
-def box_ious(masks: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """(N,) IoU of each frame's mask's bounding box with the annotated box; NaN in frames
-    without a box. ``masks`` (N, H, W) bool, ``boxes`` (N, 4) with NaN rows."""
-    out = np.full(len(boxes), np.nan)
-    for k in np.flatnonzero(np.isfinite(boxes[:, 0])):
-        out[k] = box_iou(mask_box(masks[k]), boxes[k])
-    return out
 
 
 SHARE_TARGET = 0.85
@@ -196,11 +97,11 @@ def score_clip(clip: FootageClip, hand: np.ndarray, objects: dict[str, np.ndarra
     """The box IoUs of a clip's masks (``hand`` (N, H, W), ``objects`` label -> (N, H, W))."""
     ious = {}
     for role, boxes in clip.boxes.items():
-        masks = hand if role == "hand" else objects.get(role, np.zeros_like(hand))
+        masks = hand if role == HAND else objects.get(role, np.zeros_like(hand))
         found = box_ious(masks, boxes)
-        key = "static" if role.startswith("static") else role
+        key = role_kind(role)
         ious[key] = np.concatenate([ious.get(key, np.zeros(0)), found[np.isfinite(found)]])
-    free = clip.annotated & ~np.isfinite(clip.boxes.get("hand", np.full((len(hand), 4), np.nan))[:, 0])
+    free = clip.annotated & ~np.isfinite(clip.boxes.get(HAND, np.full((len(hand), 4), np.nan))[:, 0])
     masked = free & hand.reshape(len(hand), -1).any(axis=1)
     return ClipScores(ious, int(free.sum()), int(masked.sum()), int(np.sum(contact)), seconds)
 
@@ -210,7 +111,7 @@ def bench_footage(folder: str | os.PathLike, out: str | os.PathLike | None = Non
                   quiet: bool = False) -> dict[str, ClipScores]:
     """Each clip of a real-footage folder outlined as a hurried user would
     (:func:`hurried_outline`), its masks made as ``warpskill run`` makes them
-    (:func:`warpskill.data.footage.footage_masks`), compared with the boxes; shows a
+    (:func:`warpskill.data.footage.clip_masks.footage_masks`), compared with the boxes; shows a
     table per clip and pooled, writes ``OUT/outcomes.json`` (a clip succeeds when every
     role is on its box in :data:`SHARE_TARGET` of its frames and the hand-free frames stay
     clear in :data:`CLEAR_TARGET`) and the flips since ``baseline``.
@@ -218,16 +119,8 @@ def bench_footage(folder: str | os.PathLike, out: str | os.PathLike | None = Non
     Returns:
         clip id -> scores.
     """
-    import time
-
-    from tqdm import tqdm
-
-    from warpskill.bench.outcomes import CaseOutcome, failed_case
-    from warpskill.bench.report import record_outcomes, show
-    from warpskill.data.footage import footage_masks
-
     scores, outcomes = {}, []
-    for clip in tqdm(read_footage(folder, clips), desc="clips", unit="clip", disable=quiet):
+    for clip in progress_bar(read_footage(folder, clips), enabled=not quiet, desc="clips", unit="clip"):
         start = time.perf_counter()
         try:
             key_frame, key_masks = hurried_outline(clip)
@@ -238,26 +131,26 @@ def bench_footage(folder: str | os.PathLike, out: str | os.PathLike | None = Non
             continue
         scores[clip.clip_id] = score = score_clip(clip, found.found_hand, found.objects, found.contact,
                                                   time.perf_counter() - start)
-        outcomes.append(_outcome(clip.clip_id, score, CaseOutcome))
+        outcomes.append(_outcome(clip.clip_id, score))
     show(footage_table(scores))
     record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
     return scores
 
 
-def _outcome(clip_id: str, score: ClipScores, record):
+def _outcome(clip_id: str, score: ClipScores) -> CaseOutcome:
     """A clip's row of the outcome table: the roles off their boxes too often are its failed checks."""
     shares = {f"{role}_on_box": float(np.mean(ious >= SAME_OBJECT_IOU)) for role, ious in score.ious.items() if len(ious)}
     if score.hand_free:
         shares["hand_free_clear"] = 1.0 - score.hand_free_masked / score.hand_free
     failed = tuple(name for name, share in shares.items()
                    if share < (CLEAR_TARGET if name == "hand_free_clear" else SHARE_TARGET))
-    return record(clip_id, "footage", not failed, failed, shares)
+    return CaseOutcome(clip_id, "footage", not failed, failed, shares)
 
 
 def footage_table(scores: dict[str, ClipScores]) -> str:
     """Per clip and pooled over all frames: each role's median box IoU and share >= 0.5,
     the hand-free frames given a hand mask, contact frames and seconds."""
-    roles = ("hand", "object", "static")
+    roles = (HAND, OBJECT, STATIC)
     header = f"{'clip':>8} " + " ".join(f"{role + ' med / >=0.5':>22}" for role in roles)
     lines = [header + f" {'hand-free masked':>17} {'contact':>8} {'s':>6}"]
 

@@ -4,12 +4,12 @@ The shared tools ``synthdemo.py`` (scripted scenes with ground truth, written wi
 regard to warpskill) and ``synth_sthelse.py`` (their masks as Something-Else box
 annotations and phases) are run as separate programs: into ``OUT/demos`` and
 ``OUT/annotations``. The annotation files then go through the real reader
-(:func:`~warpskill.data.box_annotations.read_something_else`,
-:func:`~warpskill.data.box_annotations.something_else_demonstration`), exactly as a real
-video's (:func:`~warpskill.bench.something_else.run_case`), are reconstructed into
+(:func:`~warpskill.data.boxes.something_else.read_something_else`,
+:func:`~warpskill.data.boxes.something_else.something_else_demonstration`), exactly as a real
+video's (:func:`~warpskill.bench.cases.run_case`), are reconstructed into
 ``OUT/<action>_s<seed>/`` and judged by the success criteria and against the generator's
-ground truth. The tools are looked for in ``$WARPSKILL_TOOLS`` or
-``../shared/tools`` next to the repository; without them the benchmark says so and stops.
+ground truth. The tools' folder is a setting (``tools``, else ``$WARPSKILL_TOOLS``:
+:func:`~warpskill.bench.settings.data_folder`); without it the benchmark says so and stops.
 """
 
 from __future__ import annotations
@@ -27,11 +27,12 @@ import numpy as np
 
 from warpskill.bench.outcomes import CaseOutcome, median_errors
 from warpskill.bench.report import record_outcomes, show
-from warpskill.bench.something_else import reconstruct_here, run_case
+from warpskill.bench.cases import reconstruct_here, run_case
+from warpskill.bench.settings import TOOLS_VARIABLE, SettingError, data_folder
 from warpskill.contract.actions import ACTIONS
 from warpskill.contract.demonstration import TRUTH_PREFIX
 from warpskill.contract.evaluation import success_table
-from warpskill.data.box_annotations import read_something_else
+from warpskill.data.boxes.something_else import read_something_else
 from warpskill.optimizer.options import OptimizeOptions
 
 logger = logging.getLogger(__name__)
@@ -42,10 +43,13 @@ ROW = "full method (second-opinion boxes)"
 
 
 def find_tools(tools: str | os.PathLike | None = None) -> Path | None:
-    """The folder holding both tools: ``tools`` when given, else ``$WARPSKILL_TOOLS`` when set,
-    else ``../shared/tools`` beside the repository; None when that folder lacks them."""
-    repository = Path(__file__).resolve().parents[2]
-    folder = Path(tools or os.environ.get("WARPSKILL_TOOLS") or repository.parent / "shared" / "tools")
+    """The folder holding both tools: ``tools`` when given, else ``$WARPSKILL_TOOLS``; None when
+    that folder lacks them.
+
+    Raises:
+        SettingError: neither is given, or the folder does not exist.
+    """
+    folder = data_folder(tools, TOOLS_VARIABLE, "--tools", f"folder of {GENERATOR} and {ANNOTATOR}")
     return folder if (folder / GENERATOR).is_file() and (folder / ANNOTATOR).is_file() else None
 
 
@@ -99,10 +103,14 @@ def bench_second_opinion(
         are absent.
     """
 
-    folder = find_tools(tools)
+    try:
+        folder = find_tools(tools)
+    except SettingError as error:
+        logger.warning("second opinion skipped: %s", error)
+        return None
     if folder is None:
-        logger.warning("second opinion skipped: %s and %s not found (give --tools or $WARPSKILL_TOOLS)",
-                       GENERATOR, ANNOTATOR)
+        where = tools or f"${TOOLS_VARIABLE}"
+        logger.warning("second opinion skipped: %s and %s not found in %s", GENERATOR, ANNOTATOR, where)
         return None
     out = Path(out)
     actions = list(actions or ACTIONS)

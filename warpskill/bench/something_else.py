@@ -1,7 +1,7 @@
 """``warpskill bench something-else``: the paper's success table on real demonstrations.
 
 Every video of the annotation files is turned into a demonstration
-(:mod:`warpskill.data.box_annotations`), reconstructed and evaluated. Per video, ``OUT/<id>/``
+(:mod:`warpskill.data.boxes.something_else`), reconstructed and evaluated. Per video, ``OUT/<id>/``
 receives ``notes.txt`` (what was done about messy annotations), ``reconstruction.npz``
 and the pictures. A video that fails is reported with its reason and counts as a failure
 in the table; the run goes on. A video whose ``reconstruction.npz`` is finished (loads:
@@ -28,44 +28,19 @@ import time
 from pathlib import Path
 from typing import Callable, Sequence
 
-from warpskill.bench.end_to_end import (
-    ENGINES,
-    RobotOutcome,
-    agreement,
-    agreement_line,
-    robot_rows,
-    robot_step,
-    timing_lines,
-)
-from warpskill.bench.outcomes import (
-    CaseFailed,
-    CaseOutcome,
-    RobotRecord,
-    camera_frame_errors,
-    failed_case,
-    judged,
-    record_failure,
-    verdict,
-    write_notes,
-)
+from warpskill.bench.cases import Reconstructed, RobotStep, case_demonstration, reconstruct_here, run_case
+from warpskill.bench.end_to_end import ENGINES, RobotOutcome, agreement, robot_rows
+from warpskill.bench.outcomes import CaseFailed, CaseOutcome
 from warpskill.bench.report import record_outcomes, show
 from warpskill.bench.rulers import hand_ruler_ratio
 from warpskill.cluster import INSTALL_HINT, optimize_folder, ray_available
-from warpskill.contract.evaluation import evaluate, success_table
+from warpskill.contract.evaluation import success_table
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
-from warpskill.data.box_annotations import (
-    SomethingElseVideo,
-    read_something_else,
-    something_else_demonstration,
-)
-from warpskill.data.box_annotations import (
-    object_noun as video_noun,
-)
+from warpskill.data.boxes.something_else import SomethingElseVideo, read_something_else, something_else_demonstration
+from warpskill.data.boxes.something_else import object_noun as video_noun
 from warpskill.nouns.typical import HAND_LENGTH, size_ratio
 from warpskill.optimizer.options import OptimizeOptions
-from warpskill.optimizer.pipeline import optimize
-from warpskill.robot import prefer_headless_gl
 from warpskill.visual.pictures import save_pictures
 
 logger = logging.getLogger(__name__)
@@ -94,11 +69,11 @@ def bench_something_else(
 ) -> SomethingElseRun:
     """Reconstruct and evaluate every annotated video; log the progress, show the table.
 
-    Every video goes through :func:`run_case`, serially or over Ray alike: only where its
-    reconstruction is made differs.
+    Every video goes through :func:`~warpskill.bench.cases.run_case`, serially or over Ray
+    alike: only where its reconstruction is made differs.
 
     Args:
-        annotations, phases, actions: the files of :func:`~warpskill.data.box_annotations.read_something_else`.
+        annotations, phases, actions: the files of :func:`~warpskill.data.boxes.something_else.read_something_else`.
         out: output folder (``OUT/<video_id>/``).
         options: the optimisation options (:class:`OptimizeOptions`), the same on both paths;
             default: all defaults. Its device is also Newton's with ``robot``.
@@ -123,7 +98,7 @@ def bench_something_else(
         raise ValueError(f"videos not in the annotation files: {', '.join(unknown)}")
     out, vids, wall = Path(out), videos or list(table), time.perf_counter()
     options = options or OptimizeOptions()
-    step = _RobotStep(engines, options.device or "cpu", video) if robot else None
+    step = RobotStep(engines, options.device or "cpu", video) if robot else None
     seconds: dict[str, float] = {}
     on_ray = (workers is not None or address) and ray_available()
     if (workers is not None or address) and not on_ray:
@@ -174,91 +149,15 @@ class SomethingElseRun:
     agreement: dict | None = None
 
 
-@dataclasses.dataclass(frozen=True)
-class Reconstructed:
-    """A video's reconstruction as :func:`run_case` receives it from either path.
-
-    Attributes:
-        recon: the reconstruction.
-        detail: how it was made (``reconstructed``, ``done before``), how long it took and the
-            demonstration's notes, as the video's line says it.
-    """
-
-    recon: Reconstruction
-    detail: str
-
-
-def run_case(vid: str, action: str | None, folder: Path, reconstruct: Callable[[], Reconstructed],
-             step: _RobotStep | None = None, truth: Callable[[], dict] | None = None) -> CaseOutcome:
-    """One annotated video of a benchmark (``bench something-else``, ``bench second-opinion``): its
-    reconstruction (``reconstruct()``, made in this process or taken from a Ray task), evaluated for
-    ``action`` (and, with ``truth()``, its ground truth: the errors, :func:`camera_frame_errors`),
-    its line logged, then (with ``step``) the robot step. A video that fails is its reason, its
-    traceback kept in ``folder``; one without an action has an empty one (it has no column in the
-    table)."""
-    try:
-        made = reconstruct()
-        evaluation = evaluate(made.recon, action)
-        errors = camera_frame_errors(made.recon, truth()) if truth is not None else None
-    except Exception as exc:  # one bad video must not stop the benchmark: report it, go on
-        outcome = failed_case(vid, action or "", record_failure(folder, exc))
-        logger.info("%6s %-20s ERROR %s", vid, action or "?", outcome.note)
-        return outcome if step is None or not action else dataclasses.replace(outcome, robot=step.skip(vid, action))
-    outcome = judged(vid, evaluation, errors)
-    scale = f", scale {outcome.errors['scale']:.2f}" if "scale" in outcome.errors else ""
-    logger.info("%6s %-20s %s  %s%s", vid, action, outcome.verdict(), made.detail, scale)
-    if step is None:
-        return outcome
-    return dataclasses.replace(outcome, robot=step.run(vid, action, made.recon, outcome.success, folder))
-
-
-def _demonstration(video, folder: Path):
-    """A video's demonstration and notes (:func:`something_else_demonstration`), the notes
-    written to ``folder/notes.txt``.
-
-    Raises:
-        ValueError: the video has no action.
-    """
-    if video.action is None:
-        raise ValueError("no action in the actions file")
-    demo, notes = something_else_demonstration(video)
-    write_notes(folder, notes)
-    return demo, notes
-
-
-def reconstruct_here(video, folder: Path, options: OptimizeOptions, pictures: bool,
-                     seconds: dict[str, float]) -> Reconstructed:
-    """A video's reconstruction in this process: the finished one in ``folder``, or optimised,
-    saved and pictured (the optimisation's time [s] goes to ``seconds[video id]``)."""
-    start = time.perf_counter()
-    demo, notes = _demonstration(video, folder)
-    keeper = ResultsFolder(folder)
-    with keeper.locked():
-        recon = keeper.finished_reconstruction(options.to_json())
-        status = "done before"
-        if recon is None:
-            optimizing = time.perf_counter()
-            recon = optimize(demo, options, progress=False, checkpoint=keeper.checkpoint)
-            seconds[video.video_id] = time.perf_counter() - optimizing
-            keeper.save(recon, keeper.reconstruction)
-            if pictures:
-                save_pictures(recon, demo, folder)
-            status = "reconstructed"
-    took = f"{time.perf_counter() - start:.1f} s"
-    if video.video_id in seconds:
-        took += f" ({seconds[video.video_id]:.1f} s reconstructing)"
-    return Reconstructed(recon, f"{status}, {took}, {len(notes)} note(s)")
-
-
 def _made_on_ray(table, vids, out: Path, options, pictures, workers, address,
                  seconds: dict[str, float]) -> tuple[dict[str, Callable[[], Reconstructed]], str]:
     """The videos' demonstrations built here and reconstructed over Ray: per video, what hands
-    :func:`run_case` its reconstruction (or raises why there is none); and where it ran, in words.
-    The optimisations' times [s] go to ``seconds``."""
+    :func:`~warpskill.bench.cases.run_case` its reconstruction (or raises why there is none); and
+    where it ran, in words. The optimisations' times [s] go to ``seconds``."""
     demos, notes, errors = {}, {}, {}
     for vid in vids:
         try:
-            demos[vid], notes[vid] = _demonstration(table[vid], out / vid)
+            demos[vid], notes[vid] = case_demonstration(table[vid], out / vid)
         except Exception as exc:  # raised again by run_case, which records it
             errors[vid] = exc
     summary = optimize_folder(demos, out, options, workers=workers, address=address, progress=True,
@@ -333,62 +232,8 @@ def _spread(ratios: list[float]) -> str:
             f"videos, {within} within {NEAR_TYPICAL:g}x)")
 
 
-class _RobotStep:
-    """The robot step per video (:func:`robot_step`), its logged line and the outcomes so far."""
-
-    def __init__(self, engines: Sequence[str], device: str, video: bool):
-        prefer_headless_gl()
-        self.engines, self.device, self.video = tuple(engines), device, video
-        self.cases: list = []  # (video_id, action, reconstruction ok, outcome or None)
-
-    def run(self, vid: str, action: str, recon, reconstructed: bool, folder: Path) -> RobotRecord:
-        """Plan and replay a video's reconstruction; its record for the outcome table."""
-        try:
-            outcome = robot_step(recon, folder, engines=self.engines, device=self.device, video=self.video)
-            line = outcome.summary()
-        except Exception as exc:  # a messy real scene must not stop the benchmark either
-            outcome = RobotOutcome(reason=record_failure(folder, exc, "robot_error.txt"))
-            line = f"robot step failed ({outcome.reason})"
-        self.cases.append((vid, action, reconstructed, outcome))
-        logger.info("%6s %-20s %s", "", "robot", line[:200])
-        return outcome.record()
-
-    def skip(self, vid: str, action: str) -> RobotRecord:
-        """A video without a reconstruction: every robot column fails."""
-        self.cases.append((vid, action, False, None))
-        return RobotRecord(False, misses=("no reconstruction",))
-
-    def report(self) -> None:
-        """Show the per-video table, the end-to-end count, the timings and how the engines agree."""
-        outcomes = [outcome for *_, outcome in self.cases]
-        lines = ["", "| video | action | reconstruction | plan | " + " | ".join(f"{e} replay" for e in self.engines) + " |",
-                 "| --- | --- | --- | --- | " + " | ".join("---" for _ in self.engines) + " |"]
-        for vid, action, reconstructed, outcome in self.cases:
-            if outcome is None:
-                plan = "no reconstruction"
-            elif outcome.planned:
-                plan = "found"
-            else:
-                plan = f"none: {outcome.reason}".replace("|", "/")
-            cells = [_verdict(outcome, engine) for engine in self.engines]
-            lines.append(f"| {vid} | {action} | {'ok' if reconstructed else 'fail'} | {plan} | " + " | ".join(cells) + " |")
-        end = [reconstructed and outcome is not None and outcome.replayed for _, _, reconstructed, outcome in self.cases]
-        if end:
-            lines.append(f"\nend to end (reconstruction and every replay meet the criteria): {sum(end)}/{len(end)} "
-                         f"({100.0 * sum(end) / len(end):.1f} %)")
-        lines += timing_lines(outcomes)
-        show(*lines, *filter(None, [agreement_line(outcomes)]))
-
-
-def _verdict(outcome: RobotOutcome | None, engine: str) -> str:
-    """A per-video table cell: ``ok``, ``fail (checks)`` or ``-`` (not replayed)."""
-    if outcome is None or engine not in outcome.replays:
-        return "-"
-    return verdict(outcome.success(engine), outcome.failed_checks(engine)).strip()
-
-
 def _report(outcomes: list[CaseOutcome], failures: dict[str, str], seconds: dict[str, float], wall: float,
-            where: str, step: _RobotStep | None = None) -> dict[str, list[tuple[str, bool]]]:
+            where: str, step: RobotStep | None = None) -> dict[str, list[tuple[str, bool]]]:
     """Show the success table (with ``step``: the robot's rows, then its tables), the failures and
     the times; returns the table's rows."""
     rows = {ROW: [(o.action, o.success) for o in outcomes]}

@@ -34,6 +34,7 @@ from typing import Callable, Sequence
 import torch
 
 from warpskill.bench.report import show
+from warpskill.bench.settings import DEV_DATA_VARIABLE, data_folder
 from warpskill.bench.timing import timed
 from warpskill.contract.actions import ACTIONS
 from warpskill.contract.demonstration import Demonstration
@@ -315,19 +316,24 @@ def bench_many(*, batches: Sequence[int] = (1, 8), devices: Sequence[str] = ("cp
 
 
 SETS = ("dev", "synthetic")
-DEV_FOLDER = "../shared/data/something_else_dev"
 
 
-def speed_cases(name: str, *, folder: str = DEV_FOLDER, seeds: int = 1, videos: Sequence[str] = ()) -> list[dict]:
-    """The cases of set ``name`` (:data:`SETS`): the development videos in ``folder`` (or ``videos`` of
-    them), or the 9 actions x ``seeds`` synthetic demonstrations (moderate noise)."""
+def speed_cases(name: str, *, folder: str | os.PathLike | None = None, seeds: int = 1,
+                videos: Sequence[str] = ()) -> list[dict]:
+    """The cases of set ``name`` (:data:`SETS`): the development videos in ``folder`` (None:
+    ``$WARPSKILL_DEV_DATA``; or ``videos`` of them), or the 9 actions x ``seeds`` synthetic
+    demonstrations (moderate noise).
+
+    Raises:
+        SettingError: the dev set without a folder.
+    """
     if name not in SETS:
         raise ValueError(f"set must be one of {SETS}, got {name!r}")
     if name == "synthetic":
         return [{"set": name, "action": a, "seed": s} for a in ACTIONS for s in range(seeds)]
-    from warpskill.data.box_annotations import read_something_else
+    from warpskill.data.boxes.something_else import read_something_else
 
-    folder = str(Path(folder).resolve())
+    folder = str(data_folder(folder, DEV_DATA_VARIABLE, "--folder", "folder of the development videos").resolve())
     table = read_something_else(f"{folder}/annotations.json", f"{folder}/phases.csv", f"{folder}/actions.csv")
     return [{"set": name, "video": v, "folder": folder} for v in (videos or table)]
 
@@ -354,7 +360,7 @@ class _Worker:
 
 
 def bench_speed_set(name: str, *, against: str | None = None, baseline: str | None = None, out: str | None = None,
-                    seeds: int = 1, videos: Sequence[str] = ()) -> dict:
+                    folder: str | os.PathLike | None = None, seeds: int = 1, videos: Sequence[str] = ()) -> dict:
     """Per-stage speed of :func:`warpskill.optimize` over a set, one case after another on one core.
 
     Args:
@@ -363,12 +369,12 @@ def bench_speed_set(name: str, *, against: str | None = None, baseline: str | No
             timed in the same run, case by case alternating which goes first.
         baseline: a JSON file this command wrote before (``out``), shown beside instead.
         out: write this run's figures here (JSON), to be a later run's ``baseline``.
-        seeds, videos: which cases (:func:`speed_cases`).
+        folder, seeds, videos: which cases (:func:`speed_cases`).
 
     Returns:
         ``{"this": [...], "previous": [...] or None}``, one worker record per case.
     """
-    cases = speed_cases(name, seeds=seeds, videos=videos)
+    cases = speed_cases(name, folder=folder, seeds=seeds, videos=videos)
     roots = {"this": Path(__file__).resolve().parents[2]} | ({"previous": Path(against).resolve()} if against else {})
     workers = {label: _Worker(root) for label, root in roots.items()}
     results: dict = {label: [] for label in workers}

@@ -74,7 +74,7 @@ def demonstration(case: dict):
     """The case's demonstration and its optimisation seed: ``{"set": "dev", "video", "folder"}`` (a
     Something-Else development video) or ``{"set": "synthetic", "action", "seed"}``."""
     if case["set"] == "dev":
-        from warpskill.data.box_annotations import read_something_else, something_else_demonstration
+        from warpskill.data import read_something_else, something_else_demonstration  # any release's package names
 
         folder = case["folder"]
         table = read_something_else(f"{folder}/annotations.json", f"{folder}/phases.csv", f"{folder}/actions.csv")

@@ -43,6 +43,8 @@ def _add_speed(bench) -> None:
     speed.add_argument("--baseline", metavar="FILE", help="with --set: the previous figures from a JSON file of -o")
     speed.add_argument("-o", "--out", metavar="FILE", help="with --set: write this run's figures (JSON)")
     speed.add_argument("--seeds", type=int, default=1, help="with --set synthetic: seeds per action (default: 1)")
+    speed.add_argument("--folder", type=Path, help="with --set dev: the development videos' folder "
+                       "(annotations.json, phases.csv, actions.csv; default: $WARPSKILL_DEV_DATA)")
     speed.add_argument("--videos", nargs="+", default=(), help="with --set dev: a subset of the video ids")
     speed.set_defaults(run=_bench_speed)
 
@@ -133,7 +135,7 @@ def _add_second_opinion(bench) -> None:
     second.add_argument("--exit-view", action="store_true", help="pick-ups lifted out of the top of the view")
     second.add_argument("--noise", type=int, choices=(0, 1, 2), default=0, help="the generator's noise level")
     second.add_argument("--tools", type=Path, help="folder of synthdemo.py and synth_sthelse.py "
-                        "(default: $WARPSKILL_TOOLS, else ../shared/tools beside the repository)")
+                        "(default: $WARPSKILL_TOOLS)")
     add_optimize_options(second)
     _add_baseline_options(second)
     second.set_defaults(run=_bench_second_opinion)
@@ -188,7 +190,7 @@ def _bench_speed(args) -> int:
 
     if args.speed_set:
         bench_speed_set(args.speed_set, against=args.against, baseline=args.baseline, out=args.out,
-                        seeds=args.seeds, videos=args.videos)
+                        folder=args.folder, seeds=args.seeds, videos=args.videos)
         return 0
     devices = ["cpu"] if args.device == "cpu" else ["cpu", args.device]
     bench_speed(devices=devices, engines=args.engines, repeats=args.repeats, measure_full=args.full,

@@ -7,9 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
+from warpskill import visual  # a lazy package: the contact sheet loads on first use
 from warpskill.cli.common import Refused
 from warpskill.contract import DemonstrationError
-from warpskill.data import contact_sheet, read_recording
+from warpskill.data import read_recording
 
 __all__ = ["add_recording_options", "prepare", "register"]
 
@@ -81,7 +82,7 @@ def prepare(args, demo_path: Path, sheet_path: Path):
         marked = np.isfinite(landmarks[:, 0, 0])
         print(f"hand: found in {int(seen.sum())} of {demo.num_frames} frames, its landmarks in {int(marked.sum())} "
               f"(MediaPipe's hand landmarker, followed; colour and motion where it sees none)")
-    print(f"contact sheet: {contact_sheet(demo, frames, sheet_path, landmarks)}")
+    print(f"contact sheet: {visual.contact_sheet(demo, frames, sheet_path, landmarks)}")
     return demo, frames
 
 

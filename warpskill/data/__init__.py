@@ -1,41 +1,50 @@
 """Real recordings to a :class:`~warpskill.contract.Demonstration`: NumPy and OpenCV only.
 
-Owns the readers of label images, mask folders and videos (:mod:`.readers`), the
-Something-Else box annotations (:mod:`.box_annotations`), mask clean-up (:mod:`.masks`),
-contact estimation and the paper's filter (:mod:`.contact`), the propagation of one
-annotated frame through a video (:mod:`.propagation`), a phone video outlined without the
-hand (:mod:`.footage`: the hand found by :mod:`.hand_landmarks` and :mod:`.hand_regions`,
-chosen and masked by :mod:`.hands`, the objects followed by :mod:`.following`), and one's
-own recording (a video and one source of masks) to a demonstration with its contact sheet
-(:mod:`.recording`). May import :mod:`warpskill.contract`; never torch, Warp, the engine or
-the optimiser (MediaPipe, the ``video`` extra, only when the hand is to be found).
+Three pipelines, one subpackage each, over two shared steps:
+
+- :mod:`.readers`: the files people have: label images and mask folders, videos, the
+  outline polygons drawn on one frame, contact and detection files;
+- :mod:`.boxes`: Something-Else box annotations (and real clips boxed the same way) to
+  masks, and how well masks sit on boxes;
+- :mod:`.footage`: a phone video outlined on one frame: the hand found (landmarks,
+  regions), the objects followed, the contact read off the fingertips, or an outline
+  with the hand propagated by optical flow;
+- shared by all three: mask clean-up (:mod:`.masks`) and contact estimation with the
+  paper's filter (:mod:`.contact`);
+- :mod:`.recording`: one's own recording (a video and one source of masks) to a
+  demonstration, joining the three.
+
+May import :mod:`warpskill.contract` and the nouns leaf; never torch, Warp, the engine or
+the optimiser (MediaPipe, the ``video`` extra, only when the hand is to be found). The
+names below are the package's public API; the subpackages' modules hold the rest.
 """
 
-from warpskill.data.box_annotations import (
+from warpskill.data.boxes.something_else import (
     SomethingElseVideo,
     read_box_annotations,
     read_something_else,
     something_else_demonstration,
 )
-from warpskill.data.contact import estimate_contact, filter_contact, read_detections
-from warpskill.data.following import follow_objects
-from warpskill.data.footage import footage_masks
-from warpskill.data.hand_landmarks import find_hands
+from warpskill.data.contact import estimate_contact, filter_contact
+from warpskill.data.footage.clip_masks import footage_masks
+from warpskill.data.footage.following import follow_objects
+from warpskill.data.footage.hand_landmarks import find_hands
+from warpskill.data.footage.propagation import propagate_masks
 from warpskill.data.masks import clean_masks
-from warpskill.data.propagation import propagate_masks, read_labelme, read_polygons
-from warpskill.data.readers import (
+from warpskill.data.readers.contact_files import read_contact, read_detections
+from warpskill.data.readers.mask_files import (
     read_label_images,
     read_mask_folders,
     read_masks,
-    read_video,
     read_video_demonstration,
 )
-from warpskill.data.recording import contact_sheet, prepare_recording, read_contact, read_recording
+from warpskill.data.readers.polygons import read_labelme, read_polygons
+from warpskill.data.readers.video import read_video
+from warpskill.data.recording import prepare_recording, read_recording
 
 __all__ = [
     "SomethingElseVideo",
     "clean_masks",
-    "contact_sheet",
     "estimate_contact",
     "filter_contact",
     "find_hands",
@@ -43,6 +52,7 @@ __all__ = [
     "footage_masks",
     "prepare_recording",
     "propagate_masks",
+    "read_box_annotations",
     "read_contact",
     "read_detections",
     "read_label_images",
@@ -51,7 +61,6 @@ __all__ = [
     "read_masks",
     "read_polygons",
     "read_recording",
-    "read_box_annotations",
     "read_something_else",
     "read_video",
     "read_video_demonstration",

@@ -14,20 +14,19 @@ detection: the hand is not visible, or the detector is not confident). The filte
 
 Frames still unknown afterwards are in contact only when contact frames flank them (the
 hand briefly unseen while holding), otherwise not.
+
+Detections come from a detector's file (:func:`warpskill.data.readers.contact_files.read_detections`),
+from the hand's landmarks (:func:`warpskill.data.footage.touch.detections_from_landmarks`) or
+from the masks alone (:func:`detections_from_masks`). Every pipeline of :mod:`warpskill.data`
+shares this module.
 """
 
 from __future__ import annotations
 
-import csv
-import math
-import os
-
 import cv2
 import numpy as np
 
-from warpskill.contract.demonstration import DemonstrationError
 from warpskill.contract.signals import majority_filter
-from warpskill.data.hand_landmarks import FINGERTIPS, INDEX_KNUCKLE, PINKY_KNUCKLE
 
 IN_CONTACT, NO_CONTACT, UNKNOWN = 1, 0, -1
 
@@ -39,60 +38,6 @@ STILL_PX = 1.5
 
 SPAN = 3
 """Visible frames at each end of the video over which step (b) measures the object's shift."""
-
-
-def read_detections(path: str | os.PathLike, num_frames: int, *, min_score: float = 0.5) -> np.ndarray:
-    """Read a hand-object contact detections CSV.
-
-    The file has a header row with the columns ``frame`` (0-based index into the masks),
-    ``in_contact`` (0/1, or true/false) and optionally ``score`` (the detector's confidence
-    in [0, 1]). A frame absent from the file, or detected with ``score < min_score``, is
-    :data:`UNKNOWN`.
-
-    Args:
-        path: the CSV file.
-        num_frames: N, the number of frames of the masks.
-        min_score: detections below this score count as no detection.
-
-    Returns:
-        (N,) int8 in {UNKNOWN, NO_CONTACT, IN_CONTACT}.
-
-    Raises:
-        DemonstrationError: (a ValueError) naming the file and line, for text that is not
-            UTF-8 CSV, a missing column, a frame out of range or repeated, or a value that is
-            not a number / boolean (a score that is not finite).
-        FileNotFoundError: ``path`` does not exist.
-    """
-    detections = np.full(num_frames, UNKNOWN, dtype=np.int8)
-    seen = set()
-    with open(path, newline="", encoding="utf-8-sig") as handle:
-        reader = csv.DictReader(handle)
-        try:
-            missing = {"frame", "in_contact"} - set(reader.fieldnames or ())
-            if missing:
-                raise DemonstrationError(
-                    f"{path}: missing column(s) {', '.join(sorted(missing))}; expected frame,in_contact[,score]"
-                )
-            for row in reader:
-                where = f"{path}, line {reader.line_num}"
-                frame = _parse(where, "frame", row["frame"], int)
-                if not 0 <= frame < num_frames:
-                    raise DemonstrationError(f"{where}: frame {frame} outside 0..{num_frames - 1}")
-                if frame in seen:
-                    raise DemonstrationError(f"{where}: frame {frame} listed twice")
-                seen.add(frame)
-                if row.get("score") not in (None, ""):
-                    score = _parse(where, "score", row["score"], float)
-                    if not math.isfinite(score):
-                        raise DemonstrationError(f"{where}: column score: expected a finite number, got {row['score']!r}")
-                    if score < min_score:
-                        continue
-                detections[frame] = IN_CONTACT if _parse(where, "in_contact", row["in_contact"], _boolean) else NO_CONTACT
-        except UnicodeDecodeError as exc:
-            raise DemonstrationError(f"{path}: not UTF-8 text ({exc})") from None
-        except csv.Error as exc:
-            raise DemonstrationError(f"{path}, line {reader.line_num}: not a readable CSV row ({exc})") from None
-    return detections
 
 
 def detections_from_masks(
@@ -127,49 +72,6 @@ def detections_from_masks(
             continue
         grown = cv2.dilate(hand.astype(np.uint8), kernel).astype(bool)
         detections[k] = IN_CONTACT if (grown & obj).any() or moved[k] else NO_CONTACT
-    return detections
-
-
-TOUCH_BREADTHS = 0.25
-"""A fingertip this close to the object's mask, in palm breadths, touches it (about 2 cm of a
-hand, a finger's width: a fingertip resting on the object lies on or just beside its visible
-mask, since the finger itself hides the object under it)."""
-
-
-def detections_from_landmarks(
-    landmarks: np.ndarray, object_mask: np.ndarray, *, touch_breadths: float = TOUCH_BREADTHS
-) -> np.ndarray:
-    """Contact detections from hand landmarks: a fingertip on or at the object's mask.
-
-    A frame is :data:`IN_CONTACT` when a fingertip lies within ``touch_breadths`` palm
-    breadths of the object's visible mask, :data:`NO_CONTACT` when the hand and the object
-    are seen and no fingertip does, :data:`UNKNOWN` when either is not seen. Filter them
-    with :func:`filter_contact`, as the paper filters a detector's output.
-
-    Args:
-        landmarks: (N, 21, 2) hand landmarks (x, y) [px], NaN rows where no hand is seen.
-        object_mask: (N, H, W) bool.
-        touch_breadths: the touching distance [palm breadths].
-
-    Returns:
-        (N,) int8 in {UNKNOWN, NO_CONTACT, IN_CONTACT}.
-    """
-    landmarks, object_mask = np.asarray(landmarks, dtype=float), np.asarray(object_mask, dtype=bool)
-    if landmarks.ndim != 3 or landmarks.shape[1:] != (21, 2) or object_mask.ndim != 3 or len(landmarks) != len(object_mask):
-        raise ValueError(
-            f"landmarks {landmarks.shape} and object_mask {object_mask.shape}: expected (N, 21, 2) and (N, H, W)"
-        )
-    h, w = object_mask.shape[1:]
-    detections = np.full(len(landmarks), UNKNOWN, dtype=np.int8)
-    for k, (points, obj) in enumerate(zip(landmarks, object_mask)):
-        if not (np.isfinite(points).all() and obj.any()):
-            continue
-        distance = cv2.distanceTransform((~obj).astype(np.uint8), cv2.DIST_L2, 3)
-        tips = np.round(points[list(FINGERTIPS)] - 0.5).astype(int)
-        inside = (tips[:, 0] >= 0) & (tips[:, 0] < w) & (tips[:, 1] >= 0) & (tips[:, 1] < h)
-        breadth = float(np.linalg.norm(points[INDEX_KNUCKLE] - points[PINKY_KNUCKLE]))
-        near = distance[tips[inside, 1], tips[inside, 0]] <= touch_breadths * breadth
-        detections[k] = IN_CONTACT if near.any() else NO_CONTACT
     return detections
 
 
@@ -306,7 +208,7 @@ def filter_contact(
 def estimate_contact(
     hand_mask: np.ndarray, object_mask: np.ndarray, *, detections: np.ndarray | None = None
 ) -> np.ndarray:
-    """Contact signal of a video: ``detections`` (e.g. from :func:`read_detections`) or,
+    """Contact signal of a video: ``detections`` (e.g. from :func:`~warpskill.data.readers.contact_files.read_detections`) or,
     lacking them, :func:`detections_from_masks`, through :func:`filter_contact`.
 
     Args:
@@ -344,21 +246,3 @@ def _check_detections(detections: np.ndarray) -> np.ndarray:
     if bad.any():
         raise ValueError(f"detections: expected values in {{-1, 0, 1}}, found {detections[bad][0]}")
     return detections.astype(np.int8)
-
-
-def _boolean(text: str) -> bool:
-    """'1'/'0'/'true'/'false' (any case) -> bool."""
-    value = text.strip().lower()
-    if value in ("1", "true"):
-        return True
-    if value in ("0", "false"):
-        return False
-    raise ValueError(text)
-
-
-def _parse(where: str, column: str, text: str | None, kind):
-    """``kind(text)``, or a DemonstrationError naming ``where`` and ``column``."""
-    try:
-        return kind((text or "").strip())
-    except ValueError:
-        raise DemonstrationError(f"{where}: column {column}: cannot read {text!r} as {kind.__name__.lstrip('_')}") from None

@@ -4,8 +4,9 @@
 source is given (mask folders, label images, polygons on one frame propagated through the
 video, or Something-Else boxes), settles the contact signal (a contact file as given;
 detections or, lacking them, the masks through the paper's filter) and returns the
-:class:`~warpskill.contract.Demonstration`. :func:`contact_sheet` draws what the optimiser
-will see: the masks over sampled frames, with the contact flag of every frame.
+:class:`~warpskill.contract.Demonstration`; :func:`read_recording` also returns the frames and
+the found hand's landmarks (for :func:`warpskill.visual.sheet.contact_sheet`). It joins
+the three pipelines of :mod:`warpskill.data`: the readers, the boxes and the footage path.
 
 Every error for bad input is a :class:`~warpskill.contract.DemonstrationError` (a
 ValueError) whose one line names the file and the problem.
@@ -13,39 +14,31 @@ ValueError) whose one line names the file and the problem.
 
 from __future__ import annotations
 
-import csv
 import os
 from pathlib import Path
 from typing import NamedTuple
 
-import cv2
 import numpy as np
 
 from warpskill.contract.actions import check_action
 from warpskill.contract.demonstration import Demonstration, DemonstrationError
-from warpskill.data.box_annotations import SomethingElseVideo, read_box_annotations, something_else_demonstration
-from warpskill.data.contact import estimate_contact, read_detections
-from warpskill.data.footage import footage_masks
+from warpskill.contract.vocabulary import HAND, OBJECT
+from warpskill.data.boxes.something_else import SomethingElseVideo, read_box_annotations, something_else_demonstration
+from warpskill.data.contact import estimate_contact
+from warpskill.data.footage.clip_masks import footage_masks
+from warpskill.data.footage.propagation import propagate_masks
 from warpskill.data.masks import clean_masks
-from warpskill.data.propagation import propagate_masks, read_polygons
-from warpskill.data.readers import is_image_sequence, read_masks, read_video
+from warpskill.data.readers.contact_files import read_contact, read_detections
+from warpskill.data.readers.mask_files import read_masks
+from warpskill.data.readers.polygons import read_polygons
+from warpskill.data.readers.video import is_image_sequence, read_video
 
 SOURCES = ("masks", "labels", "polygons", "boxes")
 """The mask sources of :func:`prepare_recording`; exactly one is given."""
 
-SHEET_TILES = 12
-"""Frames drawn on the contact sheet (at most; evenly spaced, first and last included)."""
-
-COLOURS = {"hand": (230, 60, 60), "object": (40, 200, 60), "static": (60, 120, 240)}
-"""RGB of each role on the contact sheet."""
-
 IMAGE_SEQUENCE_FPS = 12.0
 """Frame rate [1/s] taken for numbered image files without ``fps``: that of the frame
 folders of Something-Something v2, the phone clips these come from most often."""
-
-HAND_BONES = ((0, 1), (1, 2), (2, 3), (3, 4), (0, 5), (5, 6), (6, 7), (7, 8), (5, 9), (9, 10), (10, 11),
-              (11, 12), (9, 13), (13, 14), (14, 15), (15, 16), (13, 17), (0, 17), (17, 18), (18, 19), (19, 20))
-"""Pairs of hand landmarks joined when the found hand is drawn (MediaPipe's 21-point hand)."""
 
 
 class Recording(NamedTuple):
@@ -185,12 +178,12 @@ def _masks(source: str, where, video, frames: np.ndarray, *, frame: int | None, 
         key_frame, key_masks, noun = read_polygons(where, (h, w), frame=frame)
         if key_frame >= n:
             raise DemonstrationError(f"{where}: frame {key_frame} is not in {video}, which has frames 0..{n - 1}")
-        if "hand" in key_masks:
+        if HAND in key_masks:
             propagated = propagate_masks(frames, key_frame, key_masks)
         else:
             found = _found(video, frames, key_frame, key_masks)
-            propagated = {"hand": found.hand, **found.objects}
-        hand, obj = propagated.pop("hand"), propagated.pop("object")
+            propagated = {HAND: found.hand, **found.objects}
+        hand, obj = propagated.pop(HAND), propagated.pop(OBJECT)
         static = list(propagated.values())
     else:
         hand, obj, static = _box_masks(where, video_id, n, (h, w), action)
@@ -201,7 +194,7 @@ def _masks(source: str, where, video, frames: np.ndarray, *, frame: int | None, 
         )
     hand, obj = clean_masks(hand), clean_masks(obj)
     static = [clean_masks(mask) for mask in static]
-    for name, mask in (("hand", hand), ("object", obj)):
+    for name, mask in ((HAND, hand), (OBJECT, obj)):
         if not mask.any():
             raise DemonstrationError(f"{where}: the {name} mask is empty in every frame")
     return hand, obj, static, found, noun
@@ -225,7 +218,7 @@ def _contact(contact, detections, found, hand: np.ndarray, obj: np.ndarray, vide
 
 
 def _found(video, frames: np.ndarray, key_frame: int, key_masks: dict[str, np.ndarray]):
-    """:func:`~warpskill.data.footage.footage_masks`; an error naming the video where no hand is
+    """:func:`~warpskill.data.footage.clip_masks.footage_masks`; an error naming the video where no hand is
     found in any frame or an outlined object is lost in every frame."""
     found = footage_masks(frames, key_frame, key_masks)
     if not found.hand.any():
@@ -238,136 +231,6 @@ def _found(video, frames: np.ndarray, key_frame: int, key_masks: dict[str, np.nd
             f"{video}: {', '.join(lost)} lost in every frame; outline it on a frame where it is well visible"
         )
     return found
-
-
-def read_contact(path: str | os.PathLike, num_frames: int) -> np.ndarray:
-    """Read a contact CSV: a header row with the column ``contact`` (0/1 or true/false) and
-    optionally ``frame`` (then 0, 1, 2, ... in order), one row per video frame.
-
-    Returns:
-        (N,) bool.
-
-    Raises:
-        DemonstrationError: naming the file (and line), for a missing column, a value that
-            is not 0/1, frames out of order, or a row count other than ``num_frames``.
-        FileNotFoundError: ``path`` does not exist.
-    """
-    with open(path, newline="") as handle:
-        reader = csv.DictReader(handle)
-        columns = [name.strip() for name in reader.fieldnames or ()]
-        if "contact" not in columns:
-            raise DemonstrationError(f"{path}: no 'contact' column; expected a header row 'frame,contact' (or 'contact')")
-        values = []
-        for row in reader:
-            row = {key.strip(): (value or "").strip() for key, value in row.items() if key is not None}
-            where = f"{path}, line {reader.line_num}"
-            if "frame" in columns and row.get("frame") != str(len(values)):
-                raise DemonstrationError(f"{where}: frame {row.get('frame')!r}, expected {len(values)} (one row per frame, in order)")
-            text = row.get("contact", "").lower()
-            if text not in ("0", "1", "true", "false"):
-                raise DemonstrationError(f"{where}: contact {row.get('contact')!r}: expected 0/1 or true/false")
-            values.append(text in ("1", "true"))
-    if len(values) != num_frames:
-        raise DemonstrationError(f"{path}: {len(values)} contact rows, but the video has {num_frames} frames")
-    return np.array(values, dtype=bool)
-
-
-def contact_sheet(
-    demo: Demonstration, frames: np.ndarray | None, path: str | os.PathLike, landmarks: np.ndarray | None = None
-) -> Path:
-    """Draw the masks over sampled frames with each frame's contact flag, and a strip of the
-    contact signal of every frame; write it as a PNG (OpenCV).
-
-    Args:
-        demo: the demonstration.
-        frames: its (N, H, W, 3) uint8 RGB video frames, or None to draw on grey.
-        path: the PNG to write.
-        landmarks: (N, 21, 2) the found hand's landmarks [px] (NaN rows where none), drawn
-            as a skeleton; None draws none.
-
-    Returns:
-        ``path``.
-
-    Raises:
-        ValueError: ``frames`` disagree with the demonstration's frame count or size.
-    """
-    n, (h, w) = demo.num_frames, demo.image_size
-    if frames is None:
-        frames = np.full((n, h, w, 3), 96, dtype=np.uint8)
-    frames = np.asarray(frames)
-    if frames.shape != (n, h, w, 3):
-        raise ValueError(f"frames: expected shape {(n, h, w, 3)} for the demonstration, got {frames.shape}")
-    scale = float(np.clip(240.0 / w, 1.0, None)) if w < 240 else min(1.0, 320.0 / w)
-    tile_w, tile_h = int(round(w * scale)), int(round(h * scale))
-    header, gap = 18, 4
-    picks = np.unique(np.round(np.linspace(0, n - 1, min(n, SHEET_TILES))).astype(int))
-    columns = min(4, len(picks))
-    rows = -(-len(picks) // columns)
-    width = columns * (tile_w + gap) + gap
-    strip_h = 44
-    sheet = np.full((rows * (tile_h + header + gap) + gap + strip_h, width, 3), 255, dtype=np.uint8)
-    for index, k in enumerate(picks):
-        tile = _overlay(demo, frames, int(k))
-        if landmarks is not None:
-            _skeleton(tile, landmarks[k])
-        tile = cv2.resize(tile, (tile_w, tile_h), interpolation=cv2.INTER_NEAREST if scale > 1 else cv2.INTER_AREA)
-        y = gap + (index // columns) * (tile_h + header + gap)
-        x = gap + (index % columns) * (tile_w + gap)
-        on = bool(demo.contact[k])
-        sheet[y : y + header, x : x + tile_w] = (250, 170, 30) if on else (70, 70, 70)
-        text = f"frame {k}  " + ("contact" if on else "no contact")
-        cv2.putText(sheet, text, (x + 4, y + header - 5), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0) if on else (255, 255, 255), 1, cv2.LINE_AA)
-        sheet[y + header : y + header + tile_h, x : x + tile_w] = tile
-    _strip(sheet, demo, picks, sheet.shape[0] - strip_h, gap)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR)):
-        raise OSError(f"{path}: OpenCV could not write the contact sheet")
-    return path
-
-
-def _overlay(demo: Demonstration, frames: np.ndarray, k: int) -> np.ndarray:
-    """Frame ``k`` with each mask tinted in its role's colour and outlined."""
-    tile = frames[k].astype(np.float32)
-    layers = [("static", mask[k]) for mask in demo.static_mask] + [("object", demo.object_mask[k]), ("hand", demo.hand_mask[k])]
-    for role, mask in layers:
-        tile[mask] = 0.55 * tile[mask] + 0.45 * np.array(COLOURS[role], dtype=np.float32)
-    tile = tile.astype(np.uint8)
-    for role, mask in layers:
-        contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-        cv2.drawContours(tile, contours, -1, COLOURS[role], 1)
-    return tile
-
-
-def _skeleton(tile: np.ndarray, points: np.ndarray) -> None:
-    """The found hand's landmarks (21, 2) [px] drawn on ``tile`` in place (nothing for NaN)."""
-    if not np.isfinite(points).all():
-        return
-    pixel = np.round(points * 16 - 8).astype(np.int32)
-    for a, b in HAND_BONES:
-        cv2.line(tile, tuple(pixel[a]), tuple(pixel[b]), (255, 255, 255), 1, cv2.LINE_AA, shift=4)
-    for point in pixel:
-        cv2.circle(tile, tuple(point), 2 * 16, (255, 230, 0), -1, cv2.LINE_AA, shift=4)
-
-
-def _strip(sheet: np.ndarray, demo: Demonstration, picks: np.ndarray, top: int, gap: int) -> None:
-    """The contact signal of every frame along the bottom of ``sheet``, the drawn frames ticked, and the legend."""
-    n, width = demo.num_frames, sheet.shape[1] - 2 * gap
-    edges = np.round(np.linspace(gap, gap + width, n + 1)).astype(int)
-    for k in range(n):
-        colour = (250, 170, 30) if demo.contact[k] else (215, 215, 215)
-        sheet[top + 4 : top + 16, edges[k] : max(edges[k + 1] - 1, edges[k] + 1)] = colour
-    for k in picks:
-        sheet[top + 17 : top + 21, edges[k] : max(edges[k + 1] - 1, edges[k] + 1)] = 0
-    x = gap
-    for label, colour in (("hand", COLOURS["hand"]), ("object", COLOURS["object"]), ("static", COLOURS["static"]),
-                          ("contact", (250, 170, 30))):
-        sheet[top + 27 : top + 39, x : x + 12] = colour
-        cv2.putText(sheet, label, (x + 16, top + 38), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
-        x += 22 + 8 * len(label)
-    on = np.flatnonzero(demo.contact)
-    summary = f"{n} frames, {demo.fps:g} fps, contact in {len(on)}"
-    cv2.putText(sheet, summary, (x + 10, top + 38), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
 
 
 def _camera_matrix(intrinsics) -> np.ndarray | None:

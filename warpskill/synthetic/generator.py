@@ -12,7 +12,7 @@ from warpskill.contract.actions import ACTIONS, check_action
 from warpskill.contract.camera import Intrinsics
 from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.reconstruction import FIELD_SHAPES
-from warpskill.data.box_annotations import something_else_demonstration
+from warpskill.data.boxes.something_else import something_else_demonstration
 from warpskill.data.masks import clean_masks
 from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.raycast import raycast_masks

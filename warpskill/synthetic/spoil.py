@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from warpskill.data.box_annotations import SomethingElseVideo, box_masks
+from warpskill.data.boxes.something_else import SomethingElseVideo, box_masks
 from warpskill.geometry import is_held
 from warpskill.synthetic.scripts import Script
 

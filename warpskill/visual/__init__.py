@@ -1,8 +1,9 @@
 """Pictures and recordings of results, to judge them by eye.
 
 Owns the pictures (:mod:`.pictures`: the overlay GIF of :mod:`.overlay`, the top view and
-trajectory plots of :mod:`.plots`) and the 3D Rerun recording (:mod:`.rerun_view`, extra
-``viewer``). Colours and video writers come from the media leaf (:mod:`warpskill.media`).
+trajectory plots of :mod:`.plots`), a demonstration's contact sheet (:mod:`.sheet`) and the
+3D Rerun recording (:mod:`.rerun_view`, extra ``viewer``). Colours and video writers come from
+the media leaf (:mod:`warpskill.media`).
 May import the contract, the engine's renderers and the media leaf; never the optimiser's
 internals, nor the robot (the robot's track comes posed, :func:`warpskill.robot.robot_track`).
 Names load on first use.
@@ -12,6 +13,7 @@ from warpskill.lazy import lazy_exports
 
 _EXPORTS = {
     "save_pictures": "pictures",
+    "contact_sheet": "sheet",
     "overlay_frames": "overlay",
     "render_labels": "overlay",
     "top_view_figure": "plots",

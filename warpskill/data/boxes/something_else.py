@@ -1,6 +1,6 @@
 """Something-Else bounding-box annotations and Real2Sim action phases into demonstrations.
 
-The data (see ``shared/data/something_else_dev/README.md``): per-frame boxes labelled
+The data (the development set's ``README.md``): per-frame boxes labelled
 ``object hand``, ``object 0`` (the manipulated object) and ``object 1`` (the static
 object) in a JSON file; ``approach``, ``action``, ``leave`` phases at 12 fps as 1-based,
 inclusive frame ranges (``-`` = absent) in a CSV; action names in another CSV.
@@ -42,6 +42,7 @@ import numpy as np
 
 from warpskill.contract.actions import check_action
 from warpskill.contract.demonstration import Demonstration, DemonstrationError
+from warpskill.contract.vocabulary import HAND, OBJECT, static_role
 
 FPS = 12.0
 """Frame rate of the annotations [1/s]."""
@@ -57,8 +58,27 @@ MAX_GAP = 2
 
 PHASES = ("approach", "action", "leave")
 
+HAND_LABEL = "object hand"
+"""The label of the hand's boxes; the objects' are ``object k`` (:func:`object_index`)."""
+
 _FRAME_NAME = re.compile(r"(?:^|/)(\d+)\.\w+$")
 _OBJECT_LABEL = re.compile(r"^object (\d+)$")
+
+
+def object_index(label: str) -> int | None:
+    """k of a box labelled ``object k`` (0: the manipulated object, k >= 1: static object
+    k - 1); None for any other label."""
+    match = _OBJECT_LABEL.match(label)
+    return None if match is None else int(match.group(1))
+
+
+def scene_role(label: str) -> str | None:
+    """The role (:mod:`warpskill.contract.vocabulary`) of a box label: ``object hand`` ->
+    ``hand``, ``object 0`` -> ``object``, ``object k`` -> ``static_{k-1}``; None for any other."""
+    if label == HAND_LABEL:
+        return HAND
+    k = object_index(label)
+    return None if k is None else OBJECT if k == 0 else static_role(k - 1)
 
 
 @dataclasses.dataclass
@@ -177,7 +197,7 @@ def something_else_demonstration(
         notes.append(f"action phase {first}-{last} ends after the last frame {num_frames}: clipped")
     contact = np.zeros(num_frames, dtype=bool)
     contact[first - 1 : last] = True
-    statics = sorted((role for role in masks if role not in ("hand", "object 0")), key=lambda r: int(r.split()[1]))
+    statics = sorted((role for role in masks if role not in ("hand", "object 0")), key=object_index)
     static_mask = np.stack([masks[role] for role in statics]) if statics else None
     try:
         demo = Demonstration.from_arrays(
@@ -261,9 +281,9 @@ def _tracks(video: SomethingElseVideo, where: str, notes: list[str]) -> dict[str
 def _role(label: dict, placeholders: list[str], frame: int, notes: list[str]) -> str | None:
     """The role of one box label, or None to drop it (with a note for anything unexpected)."""
     name, category = str(label["gt_annotation"]), str(label.get("category", ""))
-    if name == "object hand":
+    if name == HAND_LABEL:
         return "hand"
-    if _OBJECT_LABEL.match(name):
+    if object_index(name) is not None:
         return name
     if category == "hand":
         role = "hand"

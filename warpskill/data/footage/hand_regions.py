@@ -10,14 +10,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from warpskill.data.hand_landmarks import (
-    MIN_FOLLOW_CORNERS,
-    MIN_HAND_FRACTION,
-    RANSAC_PX,
-    HandTracks,
-    check_frames,
-)
-from warpskill.data.tracking import carried_corners
+from warpskill.data.footage.hand_landmarks import MIN_FOLLOW_CORNERS, MIN_HAND_FRACTION, HandTracks, check_frames
+from warpskill.data.footage.tracking import CAMERA_CORNERS, CAMERA_RANSAC_PX, carried_corners
 
 SKIN_CR = (133, 173)
 """Range of the red chroma Cr (ITU-R BT.601 YCrCb, 8 bit) of skin, any ethnicity: Chai &
@@ -46,10 +40,6 @@ MIN_REGION_FRACTION = 0.02
 """Smallest hand region, as a fraction of the frame's area: a hand of the smallest size people
 boxed in the team's real clips (a palm 0.16 of the shorter side broad, the hand ~2.2 times
 as long as broad, about 60 % of its box filled) covers ~0.02 of a 16:9 frame."""
-
-CAMERA_CORNERS = 200
-"""Most corners tracked over the whole frame to estimate the camera's motion (a homography,
-RANSAC) from one frame to the next."""
 
 MIN_BACKGROUND_SHARE = 0.25
 """A background pixel (the median over time of the frames registered to one another) counts
@@ -167,13 +157,13 @@ def _camera_step(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     """(3, 3) homography from frame ``after``'s pixels to ``before``'s, fitted (RANSAC) to
     corners tracked with Lucas-Kanade (kept where tracking back returns to the start); the
     identity when fewer than :data:`MIN_FOLLOW_CORNERS` corners agree."""
-    corners = cv2.goodFeaturesToTrack(before, CAMERA_CORNERS, 0.01, 4)
+    corners = CAMERA_CORNERS.find(before)
     if corners is None or len(corners) < MIN_FOLLOW_CORNERS:
         return np.eye(3)
     source, target = carried_corners(before, after, corners)
     if len(source) < MIN_FOLLOW_CORNERS:
         return np.eye(3)
-    homography, inliers = cv2.findHomography(target, source, cv2.RANSAC, RANSAC_PX)
+    homography, inliers = cv2.findHomography(target, source, cv2.RANSAC, CAMERA_RANSAC_PX)
     if homography is None or inliers is None or int(inliers.sum()) < MIN_FOLLOW_CORNERS:
         return np.eye(3)
     return homography

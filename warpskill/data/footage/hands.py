@@ -1,12 +1,12 @@
-"""One hand per frame, and its mask: from the landmarks of :mod:`warpskill.data.hand_landmarks`.
+"""One hand per frame, and its mask: from the landmarks of :mod:`warpskill.data.footage.hand_landmarks`.
 
 :func:`choose_hand` keeps one hand per frame (the one touching the object, else the one
 continuing the previous frame's, else the most confident); :func:`hand_masks` turns
 landmarks into a mask (the landmarks' convex hull widened to the hand's thickness, plus the
 forearm); :func:`hand_measurements` gives the palm's breadth and the hand's length in pixels.
-:func:`warpskill.data.footage.footage_masks` chains them with
-:func:`~warpskill.data.hand_landmarks.find_hands` and, where no landmark hand is,
-:func:`~warpskill.data.hand_regions.hand_regions`. NumPy and OpenCV only.
+:func:`warpskill.data.footage.clip_masks.footage_masks` chains them with
+:func:`~warpskill.data.footage.hand_landmarks.find_hands` and, where no landmark hand is,
+:func:`~warpskill.data.footage.hand_regions.hand_regions`. NumPy and OpenCV only.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from warpskill.data.hand_landmarks import (
+from warpskill.data.footage.hand_landmarks import (
     HAND_LANDMARKS,
     INDEX_KNUCKLE,
     MIDDLE_FINGER,

@@ -27,7 +27,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from warpskill.data.tracking import carried_corners
+from warpskill.data.footage.tracking import HAND_CORNERS, HAND_MAX_SCALE_STEP, HAND_RANSAC_PX, carried_corners
 
 MODEL_FILE = "hand_landmarker.task"
 """Name of MediaPipe's hand landmarker model file among an installed distribution's files."""
@@ -83,16 +83,6 @@ clip whose hand MediaPipe rarely detects (measured: 66 % of boxed frames at 3, 7
 MIN_FOLLOW_CORNERS = 6
 """Fewest corners agreeing on the hand's motion (RANSAC inliers) to follow it one frame;
 fewer means the hand is hidden, gone or blurred and following stops."""
-
-MAX_CORNERS = 60
-"""Most corners tracked on one hand from one frame to the next."""
-
-RANSAC_PX = 2.0
-"""RANSAC inlier threshold [px] of the similarity fitted to the hand's corners."""
-
-MAX_SCALE_STEP = 0.25
-"""Largest relative change of the hand's size from one frame to the next when following;
-more is a flow failure, and following stops."""
 
 MIN_INSIDE_FRACTION = 0.5
 """Following stops when fewer than this fraction of the hand's landmarks are in the image
@@ -342,17 +332,17 @@ def _move(points: np.ndarray, before: np.ndarray, after: np.ndarray) -> np.ndarr
     if not np.isfinite(size) or size < MIN_HAND_FRACTION * min(h, w):
         return None
     region = hull_mask(points, (h, w), WIDEN_FRACTION * size)
-    corners = cv2.goodFeaturesToTrack(before, MAX_CORNERS, 0.01, 3, mask=region.astype(np.uint8) * 255)
+    corners = HAND_CORNERS.find(before, region.astype(np.uint8) * 255)
     if corners is None or len(corners) < MIN_FOLLOW_CORNERS:
         return None
     source, target = carried_corners(before, after, corners)
     if len(source) < MIN_FOLLOW_CORNERS:
         return None
-    transform, inliers = cv2.estimateAffinePartial2D(source, target, method=cv2.RANSAC, ransacReprojThreshold=RANSAC_PX)
+    transform, inliers = cv2.estimateAffinePartial2D(source, target, method=cv2.RANSAC, ransacReprojThreshold=HAND_RANSAC_PX)
     if transform is None or inliers is None or int(inliers.sum()) < MIN_FOLLOW_CORNERS:
         return None
     scale = float(np.sqrt(abs(np.linalg.det(transform[:, :2]))))
-    if abs(scale - 1.0) > MAX_SCALE_STEP:
+    if abs(scale - 1.0) > HAND_MAX_SCALE_STEP:
         return None
     out = points @ transform[:, :2].T + transform[:, 2]
     inside = (out[:, 0] >= 0) & (out[:, 0] < w) & (out[:, 1] >= 0) & (out[:, 1] < h)

@@ -1,9 +1,9 @@
 """Object masks for a whole video from an outline on one frame, robust to the hand.
 
 The user outlines the manipulated object and the static objects on one frame (polygons or
-rectangles, :func:`warpskill.data.propagation.read_polygons`); :func:`follow_objects`
+rectangles, :func:`warpskill.data.readers.polygons.read_polygons`); :func:`follow_objects`
 carries each outline to every frame, forward and backward from that frame. Unlike
-:func:`warpskill.data.propagation.propagate_masks`, which moves a mask with the dense flow
+:func:`warpskill.data.footage.propagation.propagate_masks`, which moves a mask with the dense flow
 inside it and cleans it each frame (so errors accumulate in the shape), each label here is
 one *similarity transform* (rotation, scale, shift) of its key-frame outline per frame:
 
@@ -34,23 +34,17 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from warpskill.data.tracking import LK_WINDOW_PX, carried_corners
-
-MAX_CORNERS = 150
-"""Most corners tracked inside one label (or the background) from one frame to the next."""
-
-CORNER_QUALITY = 0.005
-"""Corner quality (fraction of the strongest corner's response) for a tracked corner."""
-
-CORNER_SPACING_PX = 3
-"""Least distance [px] between two tracked corners."""
+from warpskill.data.footage.tracking import (
+    LK_WINDOW_PX,
+    OBJECT_CORNERS,
+    OBJECT_MAX_SCALE_STEP,
+    OBJECT_RANSAC_PX,
+    carried_corners,
+)
 
 EDGE_PX = 2
 """Corners this close [px] to a label's edge or the occluder are not tracked (they mix
 the label with what surrounds it)."""
-
-RANSAC_PX = 1.5
-"""RANSAC inlier threshold [px] of the fitted similarity."""
 
 MIN_CORNERS = 6
 """Fewest inlier corners whose motion moves a label; fewer: it moves with the background."""
@@ -78,9 +72,6 @@ plain shift (rotation and scale from a few close corners are mostly noise)."""
 IN_VIEW = 0.9
 """A label touching the image border with less than this fraction of its key-frame area
 in view is leaving it: without tracked corners it keeps its last own motion."""
-
-MAX_SCALE_STEP = 0.08
-"""Largest change of a label's scale from one frame to the next (relative)."""
 
 TEMPLATE_INSET = 0.15
 """Fraction of the outline's box cut from each side for the appearance template (the
@@ -265,12 +256,13 @@ def _compose(step: np.ndarray, transform: np.ndarray) -> np.ndarray:
 
 def _tracked(before: np.ndarray, after: np.ndarray, where: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Corners inside ``where`` (H, W uint8) of ``before`` and their places in ``after``, those
-    that track back (:func:`~warpskill.data.tracking.carried_corners`): two (M, 2) float32 [px]."""
-    corners = cv2.goodFeaturesToTrack(before, MAX_CORNERS, CORNER_QUALITY, CORNER_SPACING_PX, mask=where, blockSize=5)
+    that track back (:func:`~warpskill.data.footage.tracking.carried_corners`): two (M, 2) float32 [px]."""
+    corners = OBJECT_CORNERS.find(before, where)
     if corners is None or len(corners) < 2 * MIN_CORNERS:  # a small or thin part: a grid of its pixels too
-        ys, xs = np.nonzero(where[::CORNER_SPACING_PX, ::CORNER_SPACING_PX])
-        pick = np.linspace(0, len(xs) - 1, min(len(xs), MAX_CORNERS)).astype(int)
-        grid = np.stack([xs[pick], ys[pick]], axis=1).astype(np.float32)[:, None] * CORNER_SPACING_PX
+        spacing = OBJECT_CORNERS.spacing_px
+        ys, xs = np.nonzero(where[::spacing, ::spacing])
+        pick = np.linspace(0, len(xs) - 1, min(len(xs), OBJECT_CORNERS.most)).astype(int)
+        grid = np.stack([xs[pick], ys[pick]], axis=1).astype(np.float32)[:, None] * spacing
         corners = grid if corners is None else np.concatenate([corners, grid])
     if len(corners) < MIN_CORNERS:
         return np.zeros((0, 2), np.float32), np.zeros((0, 2), np.float32)
@@ -282,17 +274,18 @@ def _similarity(source: np.ndarray, target: np.ndarray) -> np.ndarray | None:
     if len(source) < MIN_CORNERS:
         return None
     shift = np.median(target - source, axis=0)
-    shifted = np.linalg.norm(target - source - shift, axis=1) < RANSAC_PX
-    transform, inliers = cv2.estimateAffinePartial2D(source, target, method=cv2.RANSAC, ransacReprojThreshold=RANSAC_PX)
+    shifted = np.linalg.norm(target - source - shift, axis=1) < OBJECT_RANSAC_PX
+    transform, inliers = cv2.estimateAffinePartial2D(source, target, method=cv2.RANSAC,
+                                                     ransacReprojThreshold=OBJECT_RANSAC_PX)
     if transform is None or inliers.sum() < SIMILARITY_GAIN * shifted.sum():  # a shift explains it as well
         if shifted.sum() < MIN_CORNERS:
             return None
         shift = (target - source)[shifted].mean(axis=0)
         return np.hstack([np.eye(2), shift[:, None]])
     scale = np.sqrt(abs(np.linalg.det(transform[:, :2])))
-    if abs(scale - 1) > MAX_SCALE_STEP:  # rescale about the inliers' centre
+    if abs(scale - 1) > OBJECT_MAX_SCALE_STEP:  # rescale about the inliers' centre
         centre = source[inliers[:, 0] == 1].mean(axis=0)
-        linear = transform[:, :2] * (np.clip(scale, 1 - MAX_SCALE_STEP, 1 + MAX_SCALE_STEP) / scale)
+        linear = transform[:, :2] * (np.clip(scale, 1 - OBJECT_MAX_SCALE_STEP, 1 + OBJECT_MAX_SCALE_STEP) / scale)
         moved = transform[:, :2] @ centre + transform[:, 2]
         transform = np.hstack([linear, (moved - linear @ centre)[:, None]])
     return transform

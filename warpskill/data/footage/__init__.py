@@ -1,0 +1,13 @@
+"""The phone-video path: an outline on one frame to masks and contact for the whole clip.
+
+Owns, stage by stage: the hand's landmarks found and followed (:mod:`.hand_landmarks`,
+MediaPipe), a hand it missed found by colour and motion (:mod:`.hand_regions`), one hand
+chosen per frame and its mask (:mod:`.hands`), the outlined objects followed
+(:mod:`.following`) with the sparse corners and every tracking setting
+(:mod:`.tracking`), the contact read off the fingertips (:mod:`.touch`), the model hand
+drawn along the found hand (:mod:`.model_hand`), the stages chained (:mod:`.clip_masks`),
+and, for an outline that includes the hand, its propagation by dense optical flow
+(:mod:`.propagation`). May import :mod:`warpskill.contract`, the nouns leaf (a hand's
+size), the readers and the shared steps of :mod:`warpskill.data`; never the box
+annotations (:mod:`warpskill.data.boxes`) or the recording.
+"""
