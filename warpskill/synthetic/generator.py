@@ -18,6 +18,7 @@ from warpskill.engine.primitives import scene_cuboids
 from warpskill.engine.raycast import raycast_masks
 from warpskill.engine.simulation import simulate
 from warpskill.geometry import is_held
+from warpskill.synthetic.relations import RELATION_ACTIONS, relation_case
 from warpskill.synthetic.scripts import (
     ASKEW_OBJECT_YAW,
     TURNED_STATIC_YAW,
@@ -49,11 +50,12 @@ the ellipses inscribed in per-frame boxes of them, as the Something-Else reader 
 (``"boxes"``; contact from annotator-like phases, scenes with the real videos' situations)."""
 
 
-SCENARIOS = ("none", "real", "narrow", "turned", "flat", "askew")
+SCENARIOS = ("none", "real", "narrow", "turned", "flat", "askew", "relations")
 """Which situations a ``"boxes"`` demonstration adds: the default ones only, also the held-out
 real videos' (:func:`real_scenarios`), a static box narrower than the object
 (:data:`~warpskill.synthetic.scripts.NARROW_STATIC`) or one turned by up to
-:data:`~warpskill.synthetic.scripts.TURNED_STATIC_YAW` (both put actions only)."""
+:data:`~warpskill.synthetic.scripts.TURNED_STATIC_YAW` (both put actions only), or named objects
+on a table filmed low (:mod:`~warpskill.synthetic.relations`: pick-ups and put actions only)."""
 
 STATIC_SCENARIOS = ("narrow", "turned")
 """The scenarios that change the static box: put actions only."""
@@ -86,6 +88,10 @@ def check_scenarios(scenarios: str, input: str, actions: Sequence[str]) -> None:
     if scenarios in STATIC_SCENARIOS and unplaced:
         raise ValueError(f"scenarios {scenarios!r} changes the static box of put actions; without one: "
                          f"{', '.join(unplaced)} (give put actions only)")
+    unrelated = [action for action in actions if action not in RELATION_ACTIONS]
+    if scenarios == "relations" and unrelated:
+        raise ValueError(f"scenarios 'relations' relates the object to a static or lifts it; not for "
+                         f"{', '.join(unrelated)} (give {', '.join(RELATION_ACTIONS)})")
 
 
 def real_scenarios(action: str, seed: int) -> tuple[str, ...]:
@@ -121,7 +127,7 @@ def make_demonstration(
             (jitter, spurious blobs, lost frames), then cleaned as the readers clean a
             segmenter's masks. ``"boxes"``: each channel's mask is the ellipse
             inscribed in the box of its true visible silhouette (box edges jittered by up to
-            ``noise.jitter`` px), rasterised by :func:`warpskill.data.box_annotations.box_masks`
+            ``noise.jitter`` px), rasterised by :func:`warpskill.data.boxes.something_else.box_masks`
             as for Something-Else; the contact is an annotator's action phase (from the
             grasp onset to the release; a pick-up's ends once the lift is done or the
             object leaves the view, while the hand still holds it); and the scenes add
@@ -138,24 +144,31 @@ def make_demonstration(
             deterministic function of action and seed): the spoilers of
             :data:`warpskill.synthetic.spoil.SPOILERS` and tall thin objects; the boxes and
             phases then reach the demonstration through the real reader
-            (:func:`~warpskill.data.box_annotations.something_else_demonstration`).
+            (:func:`~warpskill.data.boxes.something_else.something_else_demonstration`).
+            ``"relations"``: named objects and statics at their nouns' sizes, a low camera,
+            the spoilers of :data:`~warpskill.synthetic.relations.RELATION_SPOILERS`, through
+            the real reader with the nouns as the boxes' categories
+            (:func:`~warpskill.synthetic.relations.relation_case`).
     """
     check_action(action)
     if input not in INPUTS:
         raise ValueError(f"input: expected one of {INPUTS}, got {input!r}")
     check_scenarios(scenarios, input, [action])
     chosen = real_scenarios(action, seed) if scenarios == "real" else ()
+    relation = relation_case(action, seed) if scenarios == "relations" else None
     noise = NOISE_LEVELS[noise] if isinstance(noise, str) else noise
     rng = np.random.default_rng([seed, ACTIONS.index(action)])
     boxes = input == "boxes"
     variant_rng = np.random.default_rng([seed, ACTIONS.index(action), 1])
     intrinsics = Intrinsics.default(*image_size)
     for _ in range(50):
-        variant = _variant(action, seed, scenarios, chosen, variant_rng) if boxes else None
-        script = make_script(action, rng, duration, variant)
+        variant = _variant(action, seed, scenarios, chosen, variant_rng) if boxes and not relation else None
+        script = make_script(action, rng, duration, relation.variant if relation else variant)
+        if relation:
+            script = replace(script, camera_elevation=relation.camera_elevation)
         truth = _simulate(script, fps, duration)
         masks = _render(truth, intrinsics)
-        if _in_view(masks, partly=boxes):
+        if _in_view(masks, partly=boxes, seen=0.5 if relation else 0.8) and (action == "pick_up" or not relation or _rests_in_view(masks, hidden=action == "put_behind")):
             break
     else:  # pragma: no cover - the scripts are built to stay in view
         raise RuntimeError(f"could not place a {action} scene in view")
@@ -164,6 +177,10 @@ def make_demonstration(
     truth["image_size"] = np.array(image_size)
     if boxes:
         contact = noisy_contact(phase_contact(script, truth, masks), replace(noise, contact_flips=0), rng)
+        if relation:
+            nouns = (relation.object_noun, relation.static_noun)
+            return _annotated(visible_boxes(masks, noise, rng), contact, relation.spoilers, rng, fps, action, truth,
+                              nouns)
         if chosen:
             return _annotated(visible_boxes(masks, noise, rng), contact, chosen, rng, fps, action, truth)
         hand, obj, static = box_channels(masks, noise, rng)
@@ -193,14 +210,17 @@ def _variant(action: str, seed: int, scenarios: str, chosen: tuple[str, ...],
     return variant
 
 
-def _annotated(boxes, contact, chosen, rng, fps: float, action: str, truth: dict) -> Demonstration:
+def _annotated(boxes, contact, chosen, rng, fps: float, action: str, truth: dict,
+               nouns: tuple[str | None, ...] = ()) -> Demonstration:
     """The spoilers in ``chosen`` applied to the boxes (C, N, 4) and action phase (N,), read back
-    through the Something-Else reader, with the ground truth attached."""
+    through the Something-Else reader (the boxes labelled with ``nouns``: object, statics), with
+    the ground truth attached."""
     image_size = tuple(int(v) for v in truth["image_size"])
     for name in chosen:
         if name in SPOILERS:
             boxes, contact = SPOILERS[name](boxes, contact, rng, image_size)
-    demo, _ = something_else_demonstration(as_annotations(boxes, contact, action=action), image_size=image_size)
+    annotations = as_annotations(boxes, contact, action=action, nouns=nouns)
+    demo, _ = something_else_demonstration(annotations, image_size=image_size)
     return replace(demo, fps=fps, truth=_first_frames(truth, demo.num_frames))
 
 
@@ -257,9 +277,20 @@ def _render(truth: dict[str, np.ndarray], intrinsics: Intrinsics) -> np.ndarray:
     )
 
 
-def _in_view(masks: np.ndarray, margin: int = 2, *, partly: bool = False) -> bool:
+def _rests_in_view(masks: np.ndarray, margin: int = 2, *, hidden: bool = False) -> bool:
+    """Whether the object ends inside the image, so that the relation to judge is seen: its
+    last frame's visible mask keeps ``margin`` px from the border and is not empty (it may be,
+    where ``hidden``: behind a static)."""
+    last = masks[-1, 1]
+    inner = np.zeros(last.shape, bool)
+    inner[margin:-margin, margin:-margin] = True
+    return not (last & ~inner).any() and (hidden or last.any())
+
+
+def _in_view(masks: np.ndarray, margin: int = 2, *, partly: bool = False, seen: float = 0.8) -> bool:
     """Whether every cuboid stays inside the image (not touching its border) and is seen.
 
+    ``seen``: the share of frames (the first third where ``partly``) the object must be seen in.
     ``partly``: the object need only be inside the image until it is grasped (it may then
     leave the view with the hand), and static boxes may be cut by the frame.
     """
@@ -269,7 +300,7 @@ def _in_view(masks: np.ndarray, margin: int = 2, *, partly: bool = False) -> boo
     if partly:
         cuboids = cuboids[: max(1, len(cuboids) // 3), :1]
     touches = (cuboids & border).any()
-    seen = cuboids.reshape(*cuboids.shape[:2], -1).any(-1)
-    return not touches and seen[:, 0].mean() > 0.8 and masks[:, 0].any()
+    visible = cuboids.reshape(*cuboids.shape[:2], -1).any(-1)
+    return not touches and visible[:, 0].mean() > seen and masks[:, 0].any()
 
 

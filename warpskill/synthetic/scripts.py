@@ -20,6 +20,8 @@ camera; lifted out of the top of the view."""
 
 TIP_DEPTH = 0.012  # [m] how deep the scripted tip enters the object
 
+STATIC_CLEARANCE = 0.05  # [m] how far a carried object's bottom passes over a static's top (``Variant.clear_static``)
+
 
 @dataclass
 class Script:
@@ -51,6 +53,9 @@ class Variant:
     narrow_static: bool = False  # the static box narrower than the object and deeper than wide
     static_yaw: float = 0.2  # [rad] the static box's yaw is drawn in [-static_yaw, static_yaw]
     object_yaw: float = 0.3  # [rad] the object's yaw is drawn in [-object_yaw, object_yaw] (not pushed or pulled)
+    static_size: tuple[float, float, float] | None = None  # [m] a put action's static edges (x, y, z) instead of drawn ones
+    clear_static: bool = False  # carry the object over the static's top, and stand the static a gap beside it
+    tip_depth: float = TIP_DEPTH  # [m] how deep the tip enters the object from its top (flat objects: less)
 
 
 NARROW_STATIC = ((0.4, 0.8), (0.12, 0.2))
@@ -161,6 +166,13 @@ def _static_box(action: str, centre: np.ndarray, size: np.ndarray, variant: Vari
     if variant is not None and variant.narrow_static:
         (low, high), depth = NARROW_STATIC
         static_size = np.array([[u(low, high) * size[0], u(*depth), s_size[2]]])
+    if variant is not None and variant.static_size is not None:
+        static_size = np.array([variant.static_size])
+    if variant is not None and variant.clear_static:
+        # A static of any width, its near side a gap away from the object's (x, y).
+        gap = u(0.03, 0.08)
+        static_pos = np.array([[centre[0] - side * (gap + (static_size[0, 0] + size[0]) / 2),
+                                centre[1] + u(0.0, 0.05), static_size[0, 2] / 2]])
     if variant is not None and variant.wide_static:
         # A wide static box, cut by the frame: it extends away from the object.
         grow = variant.wide_static - s_size[0]
@@ -186,8 +198,11 @@ def _hand_path(action: str, centre: np.ndarray, size: np.ndarray, static_pos: np
         path = [grasp + np.array([direction * u(0.15, 0.25), 0.0, 0.0])]
     else:
         axis = np.array([u(-0.4, 0.4), u(-0.7, -0.3), 1.0])
-        grasp = centre + np.array([0.0, 0.0, size[2] / 2 - TIP_DEPTH])
+        tip = variant.tip_depth if variant is not None else TIP_DEPTH
+        grasp = centre + np.array([0.0, 0.0, size[2] / 2 - tip])
         lift = grasp + np.array([0.0, 0.0, u(0.12, 0.18)])
+        if variant is not None and variant.clear_static and len(static_pos):
+            lift[2] = max(lift[2], static_size[0, 2] + STATIC_CLEARANCE + size[2] - tip)  # its bottom over the top
         if action == "pick_up":
             path = [lift]
             ending = variant.ending if variant is not None else None
@@ -198,7 +213,7 @@ def _hand_path(action: str, centre: np.ndarray, size: np.ndarray, static_pos: np
         else:
             target = _put_target(action, static_pos[0], static_size[0], size, rng)
             above = target + np.array([0.0, 0.0, 0.08])
-            lowered = target + np.array([0.0, 0.0, size[2] / 2 - TIP_DEPTH + 0.004])
+            lowered = target + np.array([0.0, 0.0, size[2] / 2 - tip + 0.004])
             path = [lift, np.array([above[0], above[1], lift[2]]), lowered]
     return axis / np.linalg.norm(axis), grasp, path
 

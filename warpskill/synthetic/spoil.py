@@ -4,9 +4,11 @@ entering the view, static boxes cut by the frame, hands boxed in part of the fra
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
+
 import numpy as np
 
 from warpskill.data.boxes.something_else import SomethingElseVideo, box_masks
@@ -212,20 +214,24 @@ SPOILERS = {
 _CORNERS = ("x1", "y1", "x2", "y2")
 
 
-def as_annotations(boxes: np.ndarray, contact: np.ndarray, video_id: str = "0", action: str | None = None):
+def as_annotations(boxes: np.ndarray, contact: np.ndarray, video_id: str = "0", action: str | None = None,
+                   nouns: Sequence[str | None] = ()):
     """Boxes (C, N, 4) [px] and an action phase (N,) as a Something-Else video, as the real files
     have it: frames without any box are absent from the file; ``object hand``, ``object 0`` and
-    ``object <k + 1>`` labels, no nouns (a synthetic cuboid has none); approach / action / leave
-    phases (1-based, inclusive).
+    ``object <k + 1>`` labels, each with the ``category`` ``nouns`` gives it (the hand's
+    ``hand``; none where ``nouns`` lacks one: a plain cuboid has none); approach / action /
+    leave phases (1-based, inclusive).
 
     Returns:
-        a :class:`~warpskill.data.box_annotations.SomethingElseVideo` for
-        :func:`~warpskill.data.box_annotations.something_else_demonstration`.
+        a :class:`~warpskill.data.boxes.something_else.SomethingElseVideo` for
+        :func:`~warpskill.data.boxes.something_else.something_else_demonstration`.
     """
     labels = ["object hand", *(f"object {c}" for c in range(len(boxes) - 1))]
+    categories = {"object hand": "hand", **{f"object {c}": noun for c, noun in enumerate(nouns) if noun}}
     frames = []
     for k in range(boxes.shape[1]):
-        entries = [{"gt_annotation": label, "box2d": dict(zip(_CORNERS, box.tolist()))}
+        entries = [{"gt_annotation": label, "box2d": dict(zip(_CORNERS, box.tolist())),
+                    **({"category": categories[label]} if nouns and label in categories else {})}
                    for label, box in zip(labels, boxes[:, k]) if not np.isnan(box).any()]
         if entries:
             frames.append({"name": f"{video_id}/{k + 1:04d}.jpg", "labels": entries})
