@@ -62,7 +62,7 @@ class _Workspace:
     of Torch tensors, B scenes, S steps, K statics) under the record ``scene``, the per-step states ``steps``
     (B, S + 1), the per-frame ones ``frames`` (B, N) and the ``scratch``, with gradient buffers where
     ``requires_grad``: Torch views of the inputs' gradients ``input_grads``, of the frames' ``frame_grads``
-    (:class:`Rollout` field order) and of all of them, ``grads``. A call takes one from :data:`_POOL` and gives
+    (:class:`Rollout` field order), and the Warp gradients of all the records' arrays, ``grads``. A call takes one from :data:`_POOL` and gives
     it back once its backward pass has run (at once without one), its gradients zeroed for the next."""
 
     def __init__(self, key: tuple):
@@ -82,14 +82,15 @@ class _Workspace:
         self.frames = trajectory(num_scenes, num_frames, scalar, device, requires_grad)
         self.scratch = scratch(num_scenes, num_steps, scalar, device, requires_grad)
         if requires_grad:
-            self.input_grads = _grads(self.scene, SceneInputs.specs())
-            self.frame_grads = _grads(self.frames, Rollout.names())
-            names = records(scalar).Trajectory.vars
-            self.grads = [*self.input_grads, *_grads(self.steps, names), *self.frame_grads,
-                          *_grads(self.scratch, records(scalar).Scratch.vars)]
+            kinds = records(scalar)
+            self.grads = [getattr(record, name).grad for record, kind in
+                          ((self.scene, kinds.Scene), (self.steps, kinds.Trajectory), (self.frames, kinds.Trajectory),
+                           (self.scratch, kinds.Scratch)) for name in kind.vars]
+            self.input_grads = _torch_grads(self.scene, SceneInputs.specs())
+            self.frame_grads = _torch_grads(self.frames, Rollout.names())
 
 
-def _grads(record, names) -> list[torch.Tensor]:
+def _torch_grads(record, names) -> list[torch.Tensor]:
     """Torch views of the gradients of the arrays ``names`` of the struct instance ``record``."""
     return [wp.to_torch(getattr(record, name).grad, requires_grad=False) for name in names]
 
@@ -147,7 +148,8 @@ class _Simulate(torch.autograd.Function):
             ctx.tape.backward()
             input_grads = [grad.clone() if needed else None
                            for grad, needed in zip(work.input_grads, ctx.needs_input_grad[3:])]
-            torch._foreach_zero_(work.grads)  # the tape's zero() leaves a struct's arrays' gradients
+            for grad in work.grads:  # the tape's zero() leaves a struct's arrays' gradients
+                grad.zero_()
         _POOL.give_back(work.key, work)
         return (None, None, None, *input_grads)
 
