@@ -59,11 +59,14 @@ def _add_synthetic(bench) -> None:
     synthetic.add_argument("--input", choices=("masks", "boxes"), default="masks",
                            help="true silhouettes with mask noise, or ellipses in their boxes as for Something-Else")
     synthetic.add_argument("--seed-start", type=int, default=0, help="first seed")
-    synthetic.add_argument("--scenarios", choices=("none", "real", "narrow", "turned", "flat", "askew"), default="none",
+    synthetic.add_argument("--scenarios", choices=("none", "real", "narrow", "turned", "flat", "askew", "relations"),
+                           default="none",
                            help="with --input boxes: also the held-out real videos' situations (real, mixed in by "
                                 "seed), static boxes narrower than the object (narrow, put actions), static "
                                 "boxes turned by up to 30 deg (turned, put actions), long thin objects lying "
-                                "flat (flat), or lying flat at up to 69 deg (askew, pushes and pulls at 0)")
+                                "flat (flat), or lying flat at up to 69 deg (askew, pushes and pulls at 0), or "
+                                "named objects and statics at their nouns' sizes filmed low over a table "
+                                "(relations: pick up and the put actions, the default actions then)")
     synthetic.add_argument("--nouns", action="store_true",
                            help="give each object a noun whose typical size is its own times a log-normal spread")
     add_optimize_options(synthetic, known_names=True)
@@ -206,7 +209,11 @@ def _bench_synthetic(args) -> int:
     options = optimize_options(args, cannot=dict(
         seed="each case is optimised with its own seed (--seeds, --seed-start)",
         init_only="the table already has the initialisation-only row"))
-    bench_synthetic(options, seeds=args.seeds, noise=args.noise, actions=args.actions, out=args.out, input=args.input,
+    actions = args.actions
+    if actions is None and args.scenarios == "relations":
+        from warpskill.synthetic.relations import RELATION_ACTIONS
+        actions = list(RELATION_ACTIONS)
+    bench_synthetic(options, seeds=args.seeds, noise=args.noise, actions=actions, out=args.out, input=args.input,
                     known=args.known_names, seed_start=args.seed_start, scenarios=args.scenarios,
                     baseline=args.baseline, save_baseline=args.save_baseline, nouns=args.nouns)
     return 0
