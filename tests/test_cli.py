@@ -76,8 +76,9 @@ def test_optimize_writes_the_reconstruction_pictures_and_evaluation(optimized, d
 
 @pytest.mark.slow
 def test_rerun_in_the_same_folder_resumes_and_no_pictures_skips_them(
-    optimized, demo_file, tmp_path, capsys
+    optimized, demo_file, tmp_path, capsys, monkeypatch
 ):
+    monkeypatch.setattr("warpskill.progress.on_terminal", lambda: True)  # the bars are the evidence: drawn into capsys
     out = tmp_path / "out"
     shutil.copytree(optimized[0], out)
     before = Reconstruction.load(out / "reconstruction.npz")

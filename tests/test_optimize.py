@@ -150,7 +150,9 @@ def test_init_only_derives_grasped_from_contact_and_the_tip_inside_the_object(pi
     assert recon.grasped.sum() > 0  # the fit puts the tip in the object in some contact frame
 
 
-def test_checkpoint_is_written_and_a_finished_run_resumes_without_work(pick_up, pick_up_recon, tmp_path, capsys):
+def test_checkpoint_is_written_and_a_finished_run_resumes_without_work(pick_up, pick_up_recon, tmp_path, capsys,
+                                                                      monkeypatch):
+    monkeypatch.setattr("warpskill.progress.on_terminal", lambda: True)  # the bars are the evidence: drawn into capsys
     path = tmp_path / "ck.pt"
     first = optimize(pick_up, config=SMALL, progress=False, checkpoint=path)
     assert path.is_file() and not path.with_name("ck.pt.partial").exists()
@@ -164,6 +166,7 @@ def test_checkpoint_is_written_and_a_finished_run_resumes_without_work(pick_up, 
 
 
 def test_an_interrupted_run_resumes_where_its_checkpoint_left_off(pick_up, tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr("warpskill.progress.on_terminal", lambda: True)  # the bars are the evidence: drawn into capsys
     config = OptimizeConfig(iterations=10, init_iterations=6, checkpoint_every=4)
     reference = optimize(pick_up, config=config, progress=False)
     path = tmp_path / "ck.pt"
