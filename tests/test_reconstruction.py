@@ -46,6 +46,7 @@ def valid_fields(num_static: int = K) -> dict[str, np.ndarray]:
         "action": np.array("put_onto"),
         "loss": np.array(0.25),
         "options": np.array('{"seed": 0}'),
+        "object_noun": np.array("mug"),
     }
 
 

@@ -37,13 +37,14 @@ FIELD_SHAPES: dict[str, tuple[str | int, ...]] = {
     "action": (),
     "loss": (),
     "options": (),
+    "object_noun": (),
 }
 """Every reconstruction key and its shape; ``N`` frames and ``K`` static objects."""
 
 _INTEGER_FIELDS = ("image_size",)
-_STRING_FIELDS = ("action", "options")
-OPTIONAL_FIELDS = {"action": "", "options": ""}
-"""Keys a file may lack, and the value they then take (unknown action; options not recorded)."""
+_STRING_FIELDS = ("action", "options", "object_noun")
+OPTIONAL_FIELDS = {"action": "", "options": "", "object_noun": ""}
+"""Keys a file may lack, and the value they then take (unknown action; options, noun not recorded)."""
 
 
 class ReconstructionError(ValueError):
@@ -181,6 +182,8 @@ class Reconstruction(SceneCounts):
     loss: np.ndarray
     #: JSON of the optimisation options that made it (``OptimizeOptions.to_json``); "" if not recorded
     options: np.ndarray = dataclasses.field(default_factory=lambda: np.array(""))
+    #: what the manipulated object is, as annotated (the demonstration's ``object_noun``); "" if unknown
+    object_noun: np.ndarray = dataclasses.field(default_factory=lambda: np.array(""))
 
     def __post_init__(self) -> None:
         fields = {name: getattr(self, name) for name in FIELD_SHAPES}
@@ -213,8 +216,10 @@ class Reconstruction(SceneCounts):
             raise ReconstructionError(f"{path}: {exc}") from None
 
     def save(self, path: str | os.PathLike) -> None:
-        """Write the reconstruction ``.npz`` to ``path`` atomically (all keys, compressed)."""
-        save_npz_atomic(path, {name: getattr(self, name) for name in FIELD_SHAPES})
+        """Write the reconstruction ``.npz`` to ``path`` atomically (compressed): every key, but an
+        unknown ``object_noun`` (left out, a file is written as before the key)."""
+        save_npz_atomic(path, {name: getattr(self, name) for name in FIELD_SHAPES
+                               if name != "object_noun" or str(self.object_noun)})
 
     def object_corners(self) -> np.ndarray:
         """(N, 8, 3) world corners [m] of the manipulated cuboid in every frame."""

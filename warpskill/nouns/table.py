@@ -432,6 +432,16 @@ CLOTHING = {
     "ring": (0.4, 2.1, 2.1, "ISO 8653 ring size 54 (US 7): 17.2 mm inner diameter, about 21 mm across"),
 }
 
+OPEN_TOPPED = frozenset({
+    "cup", "mug", "teacup", "glass", "wine glass", "shot glass", "champagne flute", "beaker", "measuring cup",
+    "yogurt cup", "egg cup", "bowl", "flowerpot", "bucket", "basket",
+})
+"""Nouns of open vessels: a thin wall (a few millimetres) around an opening at the top that a
+finger fits into, so that a gripper can hold one by its rim (a finger inside the wall, one
+outside), however wide it is. Not jars (usually lidded, a thick threaded neck), vases (a neck
+too narrow for a finger), pots and saucepans (heavy, held by their handles), trays and plates
+(no wall to speak of)."""
+
 CATEGORIES = {
     "kitchenware": KITCHENWARE, "containers and packaging": CONTAINERS, "stationery and paper": STATIONERY,
     "electronics": ELECTRONICS, "toiletries and cosmetics": TOILETRIES, "household": HOUSEHOLD, "tools": TOOLS,

@@ -17,7 +17,7 @@ import re
 
 import numpy as np
 
-from warpskill.nouns.table import ALIASES, CATEGORIES
+from warpskill.nouns.table import ALIASES, CATEGORIES, OPEN_TOPPED
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,8 +74,8 @@ def normalise_noun(text: str) -> str:
     return _singular_phrase(_LINK.split(_clean(text), maxsplit=1)[0])
 
 
-def typical_size(noun: str | None) -> TypicalSize | None:
-    """The typical size of an annotated noun, or None when the table has none.
+def table_noun(noun: str | None) -> str | None:
+    """The noun of the table (:data:`SIZES`' key) an annotated noun stands for, or None.
 
     Tries, each directly and through :data:`ALIASES`: a whole ``X of Y`` phrase (``deck of
     cards``), then ever shorter endings of the head noun (``white coffee mug`` -> ``coffee
@@ -90,8 +90,20 @@ def typical_size(noun: str | None) -> TypicalSize | None:
     for candidate in candidates:
         candidate = ALIASES.get(candidate, candidate)
         if candidate in SIZES:
-            return SIZES[candidate]
+            return candidate
     return None
+
+
+def typical_size(noun: str | None) -> TypicalSize | None:
+    """The typical size of an annotated noun (:func:`table_noun`), or None when the table has none."""
+    key = table_noun(noun)
+    return None if key is None else SIZES[key]
+
+
+def is_open_topped(noun: str | None) -> bool:
+    """Whether an annotated noun names an open vessel held by its rim (:data:`~warpskill.nouns.table.OPEN_TOPPED`:
+    a cup, a mug, a bowl ...); False for an unknown noun."""
+    return table_noun(noun) in OPEN_TOPPED
 
 
 def size_ratio(size: np.ndarray, noun: str | None) -> float | None:
