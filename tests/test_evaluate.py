@@ -119,7 +119,8 @@ def assert_fails_only(result: Evaluation, check: str) -> None:
 @pytest.mark.parametrize("mode", ["strict", "original"])
 def test_success(action, mode):
     result = evaluate(success_scene(action), mode=mode)
-    assert result == Evaluation(success=True, checks=dict.fromkeys(result.checks, True), action=action)
+    assert (result.success, result.checks, result.action) == (True, dict.fromkeys(result.checks, True), action)
+    assert list(result.margins) == list(result.checks) and min(result.margins.values()) > 0
     expected = CHECK_NAMES[action]
     if mode == "original" and action in ("pull_right_to_left", "push_left_to_right"):
         expected = expected[:-1]

@@ -30,12 +30,15 @@ def _outcomes(*cases):
 
 
 def test_the_table_round_trips_through_json_and_csv(tmp_path):
-    outcomes = [CaseOutcome("pick_up_1", "pick_up", False, ("lifted",), {"scale": 1.7, "centre": 0.2}),
+    outcomes = [CaseOutcome("pick_up_1", "pick_up", False, ("lifted",), {"scale": 1.7, "centre": 0.2},
+                            margins={"above_ground": 0.02, "lifted": -0.004, "started_on_ground": 0.01}),
                 failed_case("pick_up_2", "pick_up", "DemonstrationError: no box")]
     path = write_outcomes(tmp_path, outcomes)
     assert load_outcomes(path) == {o.case: o for o in outcomes} == load_outcomes(tmp_path)
     rows = (tmp_path / "outcomes.csv").read_text().splitlines()
-    assert rows[1].startswith("pick_up_1,pick_up,0,lifted,0.2000,") and rows[2].endswith("DemonstrationError: no box,,")
+    assert rows[0].startswith("case,action,success,failed_checks,closest_check,closest_margin,centre,")
+    assert rows[1].startswith("pick_up_1,pick_up,0,lifted,lifted,-0.0040,0.2000,")
+    assert rows[2].startswith("pick_up_2,pick_up,0,error,,,,") and rows[2].endswith("DemonstrationError: no box,,")
 
 
 def test_flips_name_fixed_and_broken_cases_with_their_failed_checks():

@@ -71,7 +71,8 @@ def run_case(vid: str, action: str | None, folder: Path, reconstruct: Callable[[
         return outcome if step is None or not action else dataclasses.replace(outcome, robot=step.skip(vid, action))
     outcome = judged(vid, evaluation, errors)
     scale = f", scale {outcome.errors['scale']:.2f}" if "scale" in outcome.errors else ""
-    logger.info("%6s %-20s %s  %s%s", vid, action, outcome.verdict(), made.detail, scale)
+    logger.info("%6s %-20s %s  closest %s; %s%s", vid, action, outcome.verdict(), outcome.closest_text(), made.detail,
+                scale)
     if step is None:
         return outcome
     return dataclasses.replace(outcome, robot=step.run(vid, action, made.recon, outcome.success, folder))

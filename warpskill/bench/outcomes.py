@@ -3,10 +3,12 @@
 Every success benchmark (``bench synthetic``, ``bench something-else``, ``bench
 second-opinion``) writes ``OUT/outcomes.json`` and ``OUT/outcomes.csv``: one row per case
 (a synthetic ``<action>_<seed>``, a video id) with its action, whether the reconstruction
-met the criteria, the checks it failed and its key errors against the ground truth where
-there is one. A baseline is such a table, or any output folder of these benchmarks: a
-folder without ``outcomes.json`` (written by older code) is re-evaluated from the
-``<case>/reconstruction.npz`` files in it, so that earlier runs count as baselines too.
+met the criteria, the checks it failed, each check's margin (how far it was from flipping [m],
+:func:`~warpskill.contract.evaluation.evaluate`; the smallest, the case's closest call, in the
+CSV and the per-case lines) and its key errors against the ground truth where there is one.
+A baseline is such a table, or any output folder of these benchmarks: a folder without
+``outcomes.json`` (written by older code) is re-evaluated from the ``<case>/reconstruction.npz``
+files in it, so that earlier runs count as baselines too; a table of older code has no margins.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ import numpy as np
 import torch
 
 from warpskill.contract.demonstration import Demonstration
-from warpskill.contract.evaluation import Evaluation, evaluate
+from warpskill.contract.evaluation import Evaluation, closest_call, evaluate
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
 from warpskill.engine.projection import world_to_camera
@@ -89,6 +91,8 @@ class CaseOutcome:
         errors: key errors against the ground truth ([m], [rad], scale), empty without one.
         note: why there is no reconstruction, or empty.
         robot: the robot step where it ran (:class:`RobotRecord`), else None.
+        margins: check name -> its signed margin [m] (positive: passed with that much room);
+            empty without a reconstruction, and in tables of older code.
     """
 
     case: str
@@ -98,6 +102,17 @@ class CaseOutcome:
     errors: dict[str, float] = dataclasses.field(default_factory=dict)
     note: str = ""
     robot: RobotRecord | None = None
+    margins: dict[str, float] = dataclasses.field(default_factory=dict)
+
+    def closest_call(self) -> tuple[str, float] | None:
+        """The check nearest to flipping and its margin [m] (negative: the case failed); None
+        without margins."""
+        return closest_call(self.margins)
+
+    def closest_text(self) -> str:
+        """The closest call in words, ``behind_static +0.012 m``; empty without margins."""
+        closest = self.closest_call()
+        return "" if closest is None else f"{closest[0]} {closest[1]:+.3f} m"
 
     @property
     def robot_success(self) -> bool | None:
@@ -125,7 +140,7 @@ def judged(case: str, evaluation: Evaluation, errors: dict[str, float] | None = 
     """The outcome of a case from its evaluation (and its ground-truth errors, if any)."""
     failed = tuple(name for name, ok in evaluation.checks.items() if not ok)
     kept = {key: float(errors[key]) for key in ERROR_KEYS if errors and key in errors}
-    return CaseOutcome(case, evaluation.action, evaluation.success, failed, kept)
+    return CaseOutcome(case, evaluation.action, evaluation.success, failed, kept, margins=dict(evaluation.margins))
 
 
 def failed_case(case: str, action: str, reason: str) -> CaseOutcome:
@@ -167,12 +182,15 @@ def write_outcomes(folder: str | os.PathLike, outcomes: list[CaseOutcome]) -> Pa
     save_outcomes(path, outcomes)
     with open(folder / OUTCOMES_CSV, "w", newline="") as handle:
         writer = csv.writer(handle, lineterminator="\n")
-        writer.writerow(["case", "action", "success", "failed_checks", *ERROR_KEYS, "note", "robot", "robot_misses"])
+        writer.writerow(["case", "action", "success", "failed_checks", "closest_check", "closest_margin", *ERROR_KEYS,
+                         "note", "robot", "robot_misses"])
         for o in outcomes:
             cells = [f"{o.errors[key]:.4f}" if key in o.errors else "" for key in ERROR_KEYS]
+            closest = o.closest_call()
+            closest = ["", ""] if closest is None else [closest[0], f"{closest[1]:.4f}"]
             robot = "" if o.robot_success is None else int(o.robot_success)
-            writer.writerow([o.case, o.action, int(o.success), " ".join(o.failed_checks), *cells, o.note, robot,
-                             "; ".join(o.robot.misses if o.robot else ())])
+            writer.writerow([o.case, o.action, int(o.success), " ".join(o.failed_checks), *closest, *cells, o.note,
+                             robot, "; ".join(o.robot.misses if o.robot else ())])
     return path
 
 
@@ -295,10 +313,11 @@ def flips(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome],
 
 
 def flip_report(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome], name: str = "baseline") -> str:
-    """Lines naming every case that flipped since ``baseline``, both ways, with the failed checks;
-    then the robot step's flips where both tables have it, with its misses."""
+    """Lines naming every case that flipped since ``baseline``, both ways, with the failed checks and
+    their margins before and now (where the tables have them); then the robot step's flips where
+    both tables have it, with its misses."""
     lines = _flip_lines(f"since {name}", baseline, current, operator.attrgetter("success"),
-                        lambda o: f"failing {_checks(o)}")
+                        lambda o: f"failing {_checks(o)}", _margin_change)
     lines += _flip_lines("robot step", baseline, current, operator.attrgetter("robot_success"),
                          lambda o: f"missing: {'; '.join(o.robot.misses)}", optional=True)
     shared = set(baseline) & set(current)
@@ -311,18 +330,45 @@ def flip_report(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome
 
 
 def _flip_lines(title: str, baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome],
-                verdict: Callable[[CaseOutcome], bool | None], why: Callable[[CaseOutcome], str], *,
+                verdict: Callable[[CaseOutcome], bool | None], why: Callable[[CaseOutcome], str],
+                change: Callable[[CaseOutcome, CaseOutcome], str] = lambda before, now: "", *,
                 optional: bool = False) -> list[str]:
     """One ``verdict``'s part of :func:`flip_report`: the count over the cases both tables judge, then
-    each flip with ``why`` it fails; nothing where ``optional`` and no case is judged in both."""
+    each flip with ``why`` it fails and ``change(before, now)``; nothing where ``optional`` and no case
+    is judged in both."""
     both = [c for c in set(baseline) & set(current) if None not in (verdict(baseline[c]), verdict(current[c]))]
     if optional and not both:
         return []
     fixed, broken = flips(baseline, current, verdict)
     lines = [f"{title}: {len(both)} case(s) in both, {sum(verdict(baseline[c]) for c in both)} -> "
              f"{sum(verdict(current[c]) for c in both)} succeed; {len(fixed)} fixed, {len(broken)} broken"]
-    lines += [f"  fixed  {now.case:<24} {now.action:<20} was {why(before)}" for before, now in fixed]
-    return lines + [f"  broken {now.case:<24} {now.action:<20} now {why(now)}" for _, now in broken]
+    lines += [f"  fixed  {now.case:<24} {now.action:<20} was {why(before)}{change(before, now)}"
+              for before, now in fixed]
+    return lines + [f"  broken {now.case:<24} {now.action:<20} now {why(now)}{change(before, now)}"
+                    for before, now in broken]
+
+
+def _margin_change(before: CaseOutcome, now: CaseOutcome) -> str:
+    """``; behind_static +0.010 -> -0.004 m``: the margins [m] of the checks failed before or now
+    (``?``: a table without them); empty when neither table has margins."""
+    if not before.margins and not now.margins:
+        return ""
+    names = dict.fromkeys(name for name in (*before.failed_checks, *now.failed_checks)
+                          if name in before.margins or name in now.margins)
+    return "".join(f"; {name} {_signed(before.margins.get(name))} -> {_signed(now.margins.get(name))} m"
+                   for name in names)
+
+
+def _signed(margin: float | None) -> str:
+    return "?" if margin is None else f"{margin:+.3f}"
+
+
+def close_calls(outcomes: list[CaseOutcome], most: int = 5) -> str:
+    """The ``most`` cases nearest to flipping (smallest margin in size, either way), one line; empty
+    without margins."""
+    nearest = sorted((o for o in outcomes if o.margins), key=lambda o: abs(o.closest_call()[1]))[:most]
+    calls = [f"{o.case} ({'ok' if o.success else 'fail'}) {o.closest_text()}" for o in nearest]
+    return f"closest calls: {', '.join(calls)}" if calls else ""
 
 
 def _listed(cases: list[str], most: int = 10) -> str:
