@@ -15,12 +15,18 @@ none, one line), its replay in MuJoCo and Newton judged by the same criteria, ke
 ``OUT/<id>/plan.npz`` and ``replay_<engine>.npz`` (and ``replay.mp4`` with ``video``). The
 table then has the rows ``planned``, ``replay <engine>`` and ``end to end`` (the
 reconstruction and every replay meet the criteria), and a per-video table follows it.
+
+With ``jitter``, every box corner is moved by up to that many pixels before the videos are read
+(:func:`warpskill.data.boxes.jitter.jittered`, one seeded draw per video and frame), on every
+path alike; the annotation file is not touched. ``OUT/jitter.json`` records the jitter, and a
+folder whose reconstructions were made with other boxes is refused rather than reused.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import logging
 import os
 import statistics
@@ -37,6 +43,7 @@ from warpskill.cluster import INSTALL_HINT, optimize_folder, ray_available
 from warpskill.contract.evaluation import success_table
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
+from warpskill.data.boxes.jitter import jittered, video_rng
 from warpskill.data.boxes.something_else import SomethingElseVideo, read_something_else, something_else_demonstration
 from warpskill.data.boxes.something_else import object_noun as video_noun
 from warpskill.nouns.typical import HAND_LENGTH, size_ratio
@@ -48,6 +55,8 @@ logger = logging.getLogger(__name__)
 ROW = "full method (box masks)"
 NEAR_TYPICAL = 1.5
 """An object's largest edge within this factor of its noun's typical one counts as its real size."""
+JITTER_FILE = "jitter.json"
+"""``OUT/jitter.json``: the jitter the folder's reconstructions were made with (none: no jitter)."""
 
 
 def bench_something_else(
@@ -66,6 +75,8 @@ def bench_something_else(
     video: bool = False,
     baseline: str | os.PathLike | None = None,
     save_baseline: str | os.PathLike | None = None,
+    jitter: float = 0.0,
+    jitter_seed: int = 0,
 ) -> SomethingElseRun:
     """Reconstruct and evaluate every annotated video; log the progress, show the table.
 
@@ -88,6 +99,12 @@ def bench_something_else(
         video: with ``robot``, also write ``OUT/<id>/replay.mp4`` (MuJoCo's rendering of the plan).
         baseline, save_baseline: see :func:`warpskill.bench.report.record_outcomes`; the
             per-video outcome table is written to ``OUT/outcomes.json`` in any case.
+        jitter: move every box corner by up to this many pixels [px] (0: the boxes as annotated).
+        jitter_seed: the seed of the jitter's draws.
+
+    Raises:
+        ValueError: a video not in the files, a negative jitter, or ``out`` holding
+            reconstructions made with another jitter.
 
     Returns:
         The run's :class:`SomethingElseRun`.
@@ -97,6 +114,10 @@ def bench_something_else(
     if unknown:
         raise ValueError(f"videos not in the annotation files: {', '.join(unknown)}")
     out, vids, wall = Path(out), videos or list(table), time.perf_counter()
+    if jitter:
+        table = {vid: jittered(video, jitter, video_rng(jitter_seed, vid)) for vid, video in table.items()}
+        logger.info("boxes jittered: every corner by up to %g px in x and y (seed %d)", jitter, jitter_seed)
+    _claim_for_jitter(out, {"px": jitter, "seed": jitter_seed} if jitter else None)
     options = options or OptimizeOptions()
     step = RobotStep(engines, options.device or "cpu", video) if robot else None
     seconds: dict[str, float] = {}
@@ -147,6 +168,31 @@ class SomethingElseRun:
     hand_ratios: dict[str, float | None]
     robot: dict[str, RobotOutcome | None] | None = None
     agreement: dict | None = None
+
+
+def _claim_for_jitter(out: Path, jitter: dict | None) -> None:
+    """Make sure ``out`` holds no reconstruction made with other boxes than ``jitter``'s (None: the
+    boxes as annotated), then record ``jitter`` in ``OUT/jitter.json``.
+
+    Raises:
+        ValueError: ``out`` has reconstructions made with another jitter (they would be reused).
+    """
+    marker = out / JITTER_FILE
+    made = json.loads(marker.read_text()) if marker.exists() else None
+    if made != jitter and any(out.glob(f"*/{ResultsFolder.RECONSTRUCTION}")):
+        raise ValueError(f"{out} holds reconstructions made with {_jitter_words(made)}, not {_jitter_words(jitter)}: "
+                         "give another output folder (-o)")
+    if jitter is None:
+        marker.unlink(missing_ok=True)
+    else:
+        ResultsFolder(out).write_text(marker, json.dumps(jitter) + "\n")
+
+
+def _jitter_words(jitter: dict | None) -> str:
+    """'boxes jittered by up to 2 px (seed 0)' or 'the boxes as annotated'."""
+    if jitter is None:
+        return "the boxes as annotated"
+    return f"boxes jittered by up to {jitter['px']:g} px (seed {jitter['seed']})"
 
 
 def _made_on_ray(table, vids, out: Path, options, pictures, workers, address,

@@ -123,6 +123,10 @@ def _add_something_else(bench) -> None:
     real.add_argument("--engines", nargs="+", choices=("mujoco", "newton"), default=["mujoco", "newton"],
                       help="replay engines of --robot")
     real.add_argument("--video", action="store_true", help="with --robot, also write OUT/<video>/replay.mp4")
+    real.add_argument("--jitter", type=float, default=0.0, metavar="PX",
+                      help="move every box corner by up to PX pixels in x and y (uniform, seeded) before reading; "
+                           "with --baseline, the verdicts that flip")
+    real.add_argument("--jitter-seed", type=int, default=0, metavar="S", help="seed of --jitter's draws (default 0)")
     add_optimize_options(real)
     _add_baseline_options(real)
     real.set_defaults(run=_bench_something_else)
@@ -251,7 +255,7 @@ def _bench_something_else(args) -> int:
     bench_something_else(
         args.annotations, args.phases, args.actions, optimize_options(args), out=args.out, videos=args.videos,
         workers=args.workers, address=args.ray_address, robot=args.robot, engines=args.engines, video=args.video,
-        baseline=args.baseline, save_baseline=args.save_baseline,
+        baseline=args.baseline, save_baseline=args.save_baseline, jitter=args.jitter, jitter_seed=args.jitter_seed,
     )
     return 0
 
