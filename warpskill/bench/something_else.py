@@ -102,12 +102,12 @@ def bench_something_else(
         jitter: move every box corner by up to this many pixels [px] (0: the boxes as annotated).
         jitter_seed: the seed of the jitter's draws.
 
+    Returns:
+        The run's :class:`SomethingElseRun`.
+
     Raises:
         ValueError: a video not in the files, a negative jitter, or ``out`` holding
             reconstructions made with another jitter.
-
-    Returns:
-        The run's :class:`SomethingElseRun`.
     """
     table = read_something_else(annotations, phases, actions)
     unknown = sorted(set(videos or ()) - set(table))
