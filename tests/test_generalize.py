@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+from collections import Counter
 
 import numpy as np
 import pytest
@@ -115,6 +116,8 @@ def test_generalize_two_layouts(capsys, tmp_path):
     assert (misses == 0) == (not result.misses)
     out = capsys.readouterr().out
     assert "| planned" in out and "| robust" in out
+    redrawn = result.redrawn["pick_up"]  # the draws refused before planning, by reason, shown
+    assert f"layouts redrawn before planning: {redrawn.total()}" in out
     table = load_outcomes(tmp_path)  # one row per layout, its robot verdicts as in the table above
     assert list(table) == ["pick_up/layout 0", "pick_up/layout 1"]
     for k, case in enumerate(table.values()):
@@ -123,7 +126,7 @@ def test_generalize_two_layouts(capsys, tmp_path):
         assert list(case.robot.misses) == result.outcomes[k].misses()
 
 
-def test_a_skill_no_layout_fits_counts_as_unplanned_and_says_why(caplog):
+def test_a_skill_no_layout_fits_counts_as_unplanned_and_says_why(caplog, capsys):
     caplog.set_level(logging.INFO, logger="warpskill")
     pytest.importorskip("mujoco")
     from warpskill.bench.generalize import bench_generalize
@@ -140,6 +143,9 @@ def test_a_skill_no_layout_fits_counts_as_unplanned_and_says_why(caplog):
     assert any(line.startswith("into-the-box: no layout: ") for line in caplog.messages)
     assert [(c.case, c.failed_checks, c.robot_success) for c in result.cases] == \
         [("into-the-box/layout 0", ("plan",), False), ("into-the-box/layout 1", ("plan",), False)]
+    # refused at its own layout already (the box covers the object's start): nothing drawn, nothing redrawn
+    assert result.redrawn == {"into-the-box": Counter()}
+    assert "layouts redrawn before planning: 0\n" in capsys.readouterr().out
 
 
 def test_generalize_refuses_the_robust_row_without_mujoco():

@@ -154,19 +154,19 @@ def test_a_carried_object_is_lifted_over_a_box_in_its_way():
 def test_a_release_inside_the_box_is_carried_as_touching_it():
     recon = truth("put_next_to")
     k_off = int(np.flatnonzero(recon.grasped > 0.5)[-1]) + 1
-    axis = int(np.argmax(np.abs(recon.object_pos[k_off, :2] - recon.static_pos[0, :2])))
-    toward = np.zeros(3)
-    toward[axis] = recon.object_pos[k_off, axis] - recon.static_pos[0, axis]
+    box_rot = recon.static_rot[0]
+    local = box_rot.T @ (recon.object_pos[k_off] - recon.static_pos[0])
+    axis = int(np.argmax(np.abs(local[:2])))  # the side of the box the object was put at, in its frame
+    out = math.copysign(1.0, local[axis]) * box_rot[:, axis]
     skill = skill_from(recon)
-    # The box moved toward the released object until they overlap by 2 cm at the release.
-    inside = dataclasses.replace(recon, static_pos=recon.static_pos + toward * (skill.release_gap + 0.02)
-                                 / abs(toward[axis]))
+    # The box moved out toward the released object until they overlap by 2 cm at the release.
+    inside = dataclasses.replace(recon, static_pos=recon.static_pos + out * (skill.release_gap + 0.02))
     pressed = skill_from(inside)
     assert pressed.release_gap == pytest.approx(-0.02)
     carried = apply_skill(pressed, demonstrated_layout(pressed))
-    extents = [0.5 * float(np.abs(rot[axis]) @ size) for rot, size in
+    extents = [0.5 * float(np.abs(rot.T @ out) @ size) for rot, size in
                ((carried.static_rot[0], carried.static_size[0]), (carried.object_rot[k_off], carried.object_size))]
-    gap = abs(carried.object_pos[k_off, axis] - carried.static_pos[0, axis]) - sum(extents)
+    gap = float((carried.object_pos[k_off] - carried.static_pos[0]) @ out) - sum(extents)
     assert gap == pytest.approx(0.0, abs=1e-9)
 
 

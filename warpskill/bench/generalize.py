@@ -10,8 +10,14 @@ as ``bench robot`` does). A plan that succeeds in every engine is replayed in Mu
 more under each of :data:`~warpskill.robot.perturbation.PERTURBATIONS` (mass x0.5 and x2,
 friction -+30 %, the object 1 cm and 5 deg off); it is *robust* when it succeeds under all.
 
+A drawn layout where the skill's relation cannot be met is drawn again before any planning
+(out of the Panda's reach, overlapping footprints, no room beside the static box, a release
+not beside / behind / in front of / on it as the action's checks judge it: the drawer's
+reasons), never judged by a failed replay; the run shows how many draws were redrawn, per
+skill and why.
+
 Shows, per action, planned / succeeded (per engine) / robust as a success table, how the
-engines agree, and the reason of every miss (the plan's error, the failed checks, the
+engines agree, the redrawn layouts, and the reason of every miss (the plan's error, the failed checks, the
 perturbations that broke it). With ``out``, one outcome row per layout (case ``<name>/layout
 <k>``, :class:`~warpskill.bench.outcomes.CaseOutcome`: success = replayed in every engine,
 its ``robot`` record with the misses and the substitute) goes to ``OUT/outcomes.json``, and the
@@ -23,6 +29,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from itertools import islice
 from pathlib import Path
@@ -84,10 +91,13 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
         check_robust_engines(engines)
     rows: dict[str, list[tuple[str, bool]]] = {}
     misses, outcomes, cases = [], [], []
+    redrawn: dict[str, Counter[str]] = {}
     for i, (name, recon) in enumerate(recons.items()):
         skill, done = skill_from(recon), 0
+        redrawn[_short(name)] = Counter()
         try:
-            for k, layout in enumerate(islice(random_layouts(skill, seed=seed + i), layouts)):
+            for k, layout in enumerate(islice(random_layouts(skill, seed=seed + i, redrawn=redrawn[_short(name)]),
+                                              layouts)):
                 outcome = robot_step(apply_skill(skill, layout), engines=engines, device=device, robust=robust,
                                      skill=skill, layout=layout)
                 outcomes.append(outcome)
@@ -105,11 +115,22 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
                 cases.append(_case(f"{_short(name)}/layout {k}", skill.action, unplanned))
             misses.append(f"{name}: every layout: {error}")
             logger.info("%s: no layout: %s", name, error)
-    show("", success_table(rows), *filter(None, [agreement_line(outcomes)]))
+    show("", success_table(rows), *filter(None, [agreement_line(outcomes)]), *_redrawn_lines(redrawn))
     if misses:
         show("misses:", *(f"  {line}" for line in misses))
     record_outcomes(out, cases, baseline=baseline, save_baseline=save_baseline)
-    return GeneralizeRun(rows, misses, outcomes, cases)
+    return GeneralizeRun(rows, misses, outcomes, cases, redrawn)
+
+
+def _redrawn_lines(redrawn: Mapping[str, Counter[str]]) -> list[str]:
+    """How many draws were refused before planning and drawn again, and why: in all, then per skill."""
+    def counts(counter: Counter[str]) -> str:
+        reasons = ", ".join(f"{reason} {count}" for reason, count in counter.most_common())
+        return f"{counter.total()}" + (f" ({reasons})" if reasons else "")
+
+    total = sum(redrawn.values(), Counter())
+    return [f"layouts redrawn before planning: {counts(total)}",
+            *(f"  {name}: {counts(counter)}" for name, counter in redrawn.items() if counter)]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,12 +143,15 @@ class GeneralizeRun:
         misses: why each layout missed, one line each.
         outcomes: the robot step's outcome of each layout that could be laid out.
         cases: each layout's row of the outcome table (:class:`~warpskill.bench.outcomes.CaseOutcome`).
+        redrawn: per skill (its name in the outcome table), the draws refused before planning
+            and drawn again, counted by reason (:func:`warpskill.export.layouts.layouts`).
     """
 
     rows: dict[str, list[tuple[str, bool]]]
     misses: list[str]
     outcomes: list[RobotOutcome]
     cases: list[CaseOutcome]
+    redrawn: dict[str, Counter[str]]
 
 
 def _short(name: str) -> str:

@@ -56,7 +56,16 @@ class SkillError(ValueError):
 
 
 class LayoutError(ValueError):
-    """A layout the skill cannot be carried to; the one-line message says why."""
+    """A layout the skill cannot be carried to; the one-line message says why.
+
+    Attributes:
+        reason: why in a few words (``"out of reach"``, ``"relation not met"``, ...): what a
+            layout drawer counts its redrawn layouts by.
+    """
+
+    def __init__(self, message: str, reason: str = "refused") -> None:
+        super().__init__(message)
+        self.reason = reason
 
 
 def _pose(value, what: str) -> tuple[float, float, float]:
@@ -128,9 +137,10 @@ class Skill(SceneCounts):
     Build one with :func:`~warpskill.robot.skill_layout.skill_from`;
     :func:`~warpskill.robot.skill_layout.apply_skill` carries it to a :class:`Layout`.
     ``onset`` and ``release`` are the times [s] of the first held frame and of the frame after
-    the last one (``nan``: held to the end). ``release_offset`` (3,) [m] and ``release_gap``
-    [m] are those of :mod:`warpskill.robot.skill_layout`'s doc (zeros and 0 for actions other
-    than ``put_*``).
+    the last one (``nan``: held to the end). ``release_offset`` (3,) [m] is the released object's
+    centre (the last frame's where held to the end) minus the static box's centre (world axes), ``release_gap`` [m] the gap between them
+    along the relation's side (:mod:`warpskill.robot.skill_layout`'s doc; zeros and 0 for
+    actions other than ``put_*``).
     """
 
     action: str

@@ -11,10 +11,14 @@ default placement: the scene centre 0.5 m ahead, the robot facing world +y).
 - the object's start: uniform over the sector's area, yaw uniform in [-pi, pi);
 - each static box: uniform over the sector's area, yaw uniform in [-pi, pi);
 
-and keeps a draw only where the action still makes sense: the boxes' start footprints do not
+and keeps a draw only where the action still makes sense, decided from the geometry before
+any planning (a refused draw is drawn again, and counted by its reason: :func:`layouts`'s
+``redrawn``): the boxes' start footprints do not
 touch (:func:`~warpskill.robot.skill_layout.overlap_depth` 0) nor reach within
 :data:`BASE_CLEARANCE` of the robot's base axis (nor does the object anywhere on its path),
-:func:`~warpskill.robot.skill_layout.apply_skill` accepts it (no path through a static box) and the object's whole held
+:func:`~warpskill.robot.skill_layout.apply_skill` accepts it (no path through a static box, the
+relation met where the skill releases the object: beside, behind, in front of or on the
+static box as the action's checks judge it) and the object's whole held
 path, the ``put_*`` release beside or on the box included, keeps
 :data:`~warpskill.robot.placement.REACH_MARGIN` (5 cm) inside the Panda's reach from some base
 placement that the retargeting searches (:func:`~warpskill.robot.placement.check_reach`, the
@@ -96,8 +100,13 @@ class ReachableTable:
         return self.base[:2, :2] @ local + self.base[:2, 3]
 
 
-def layouts(skill: Skill, *, seed: int = 0, table: ReachableTable | None = None) -> Iterator[Layout]:
+def layouts(skill: Skill, *, seed: int = 0, table: ReachableTable | None = None,
+            redrawn: Counter[str] | None = None) -> Iterator[Layout]:
     """Endless random layouts of ``skill`` (the module doc's distribution), reproducible by ``seed``.
+
+    Args:
+        redrawn: where to count each draw refused, and so drawn again, by its reason (a few words:
+            ``"out of reach"``, ``"relation not met"``, ...), before any planning.
 
     Raises:
         LayoutError: :data:`MAX_DRAWS` draws in a row were all refused (a skill whose path
@@ -114,6 +123,8 @@ def layouts(skill: Skill, *, seed: int = 0, table: ReachableTable | None = None)
                 yield layout
                 break
             refusals[reason] += 1
+            if redrawn is not None:
+                redrawn[reason] += 1
         else:
             raise LayoutError(f"no layout of the {skill.action} skill fits the reachable table in {MAX_DRAWS} "
                               f"draws ({_commonest(refusals)})")
@@ -141,8 +152,8 @@ def _refusal(skill: Skill, layout: Layout, table: ReachableTable) -> str:
     """Why ``layout`` is refused (the module doc's conditions, in a few words), or "" if it is kept."""
     try:
         recon = apply_skill(skill, layout)
-    except LayoutError:
-        return "boxes overlap on the path"
+    except LayoutError as error:  # overlapping boxes, a path into a static box, the relation not met
+        return error.reason
     boxes = [(recon.object_pos[0], recon.object_rot[0], recon.object_size),
              *zip(recon.static_pos, recon.static_rot, recon.static_size)]
     # Footprints: each pair compared at one height (an object held from the first frame may start
@@ -150,7 +161,7 @@ def _refusal(skill: Skill, layout: Layout, table: ReachableTable) -> str:
     level = lambda box, z: (np.array([*box[0][:2], z]), *box[1:])  # noqa: E731
     if not all(overlap_depth(*boxes[i], *level(boxes[j], boxes[i][0][2])) == 0.0
                for i in range(len(boxes)) for j in range(i + 1, len(boxes))):
-        return "start footprints touch"
+        return "footprints overlap"
     path = zip(recon.object_pos, recon.object_rot)
     if not (all(table.clear_of_base(*box) for box in boxes)
             and all(table.clear_of_base(pos, rot, recon.object_size) for pos, rot in path)):
@@ -161,6 +172,6 @@ def _refusal(skill: Skill, layout: Layout, table: ReachableTable) -> str:
         return "path swings too fast"  # the put's path bent so far towards the box
     try:
         check_reach(recon)
-    except LayoutError:
-        return "out of reach"
+    except LayoutError as error:
+        return error.reason
     return ""

@@ -232,4 +232,4 @@ def check_reach(recon: Reconstruction, placement: Placement | None = None) -> No
     raise LayoutError(f"layout refused: out of the Panda's reach: from {where} the object's held path runs "
                       f"{100 * short:.1f} cm into the {100 * REACH_MARGIN:.0f} cm margin kept inside the arm's "
                       f"{REACH:.2f} m reach and {NEAR_REACH:.2f} m from its base (frame {frame}, "
-                      f"t = {recon.t[frame]:.2f} s, object at ({x:.2f}, {y:.2f}) m)")
+                      f"t = {recon.t[frame]:.2f} s, object at ({x:.2f}, {y:.2f}) m)", reason="out of reach")

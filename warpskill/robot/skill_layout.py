@@ -4,20 +4,34 @@
 with the action, the timing (grasp signal, contact onset and release [s]), the cuboid sizes, the
 demonstrated layout, and the motion relative to the objects:
 
-- the object's motion relative to its start: the displacement in the world's axes and the
-  rotation in the world's frame (a pull or push keeps its world direction: left to right
-  stays left to right; a pick-up lifts up);
+- the object's motion relative to its start: the displacement in the world's axes (a pull
+  or push keeps its world direction: left to right stays left to right; a pick-up lifts up)
+  and the rotation in the world's frame; a carried object's (``pick_up``, ``put_*``) turns
+  with the layout's yaw, so that it tilts as demonstrated relative to itself and comes to
+  rest on the same face, as high;
 - the hand relative to the object (approach: to the object at the onset; contact: to the
   object in that frame; retreat: to the object at the release). Grasp actions (``pick_up``,
   ``put_*``) hold the object somewhere on it: the hand is kept in the object's own axes,
   scaled with its size. Pulls and pushes press or hook the face that faces the world
   direction: the hand is kept in the world's axes at the object's centre, moved out or
   in with that face;
-- for ``put_*``, the release relative to the (first) static box as seen from the camera:
-  the object centre's offset from the box centre in world axes, along the dominant
-  horizontal world axis as the gap between their world extents (at least touching: a
-  reconstruction that ends the object a little inside the box meant it beside the box);
-  for ``put_onto``, the offset is kept inside the box's top (:data:`ONTO_INSET`).
+- for ``put_*``, the release (the last frame for a put held to the video's end) relative to
+  the (first) static box: the object centre's offset from the box centre (``release_offset``,
+  world axes) and the gap between them along the relation's side (``release_gap``). At a new layout the relation is kept as each action means it:
+
+  - ``put_next_to``: in the box's own frame: the side is the box's horizontal axis nearest the
+    demonstrated offset, the object released at the demonstrated gap out of that face and at
+    the demonstrated offset along it (clamped to the face), wherever the box is turned;
+  - ``put_behind`` / ``put_in_front_of``: as seen from the camera that judges them
+    (:data:`VIEW`, :mod:`warpskill.contract.evaluation`): along / against the viewing
+    direction at the demonstrated gap between the world extents, at the demonstrated
+    sideways (world x) offset clamped to the box's width;
+  - ``put_onto``: on the box's top face at the demonstrated offset in the box's frame,
+    clamped to the face (:data:`ONTO_INSET`);
+  - ``pick_up``: to the demonstrated height (the lift of the object's bottom kept).
+
+  The gap is at least touching: a reconstruction that ends the object a little inside the
+  box meant it beside the box.
 
 An object held from the first frame was carried into view: in a layout it starts where the
 demonstration has slowed down for good (:func:`takeover`), resting on the table.
@@ -29,7 +43,10 @@ a box's edge by a few centimetres.
 A :class:`~warpskill.contract.skill.Layout` places the object's start and each static box on the table
 (x, y, yaw) in the reconstruction's world frame; :func:`apply_skill` makes the reconstruction of the
 skill there, which retargeting, replays and :func:`~warpskill.contract.evaluation.evaluate`
-consume as any reconstruction.
+consume as any reconstruction. It refuses, before any planning, a layout where the relation
+cannot be met: boxes that overlap, a path that runs into a static box, and a pick-up or put
+whose laid-out scene fails the action's own checks (e.g. a next-to side that the box's turn
+shows to the camera as behind it).
 """
 
 from __future__ import annotations
@@ -39,11 +56,12 @@ import math
 import numpy as np
 
 from warpskill.contract.actions import check_action
+from warpskill.contract.evaluation import evaluate
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.skill import Layout, LayoutError, Skill, SkillError
-from warpskill.geometry import NEVER_HELD, heading, held_span, is_held, rot_z, support_extent
+from warpskill.geometry import NEVER_HELD, heading, held_span, is_held, release_frame, rot_z, support_extent
 
-__all__ = ["ONTO_INSET", "SWING_SPEED", "TAKEOVER_SPEED", "apply_skill", "demonstrated_layout", "overlap_depth",
+__all__ = ["ONTO_INSET", "SWING_SPEED", "TAKEOVER_SPEED", "VIEW", "apply_skill", "demonstrated_layout", "overlap_depth",
            "skill_from", "takeover"]
 
 OVERLAP_TOLERANCE = 0.01
@@ -66,6 +84,10 @@ ONTO_INSET = 0.03
 box's top (half the top's half extent on a top narrower than twice that): the object settles by a
 centimetre or so, and a centre at the edge tips it off the box (a reconstruction may end the
 object beside the box it was put onto)."""
+
+VIEW = np.array([0.0, 1.0, 0.0])
+"""The camera's horizontal viewing direction in the world (``docs/formats.md``: y away from the
+camera): put behind / in front of are judged along it (:mod:`warpskill.contract.evaluation`)."""
 
 SWING_SPEED = 1.7
 """[m/s] an object held from the first frame that moves faster than this (between two frames)
@@ -191,11 +213,12 @@ def apply_skill(skill: Skill, layout: Layout) -> Reconstruction:
 
     Raises:
         LayoutError: a static box count other than the skill's, boxes that overlap at
-            the start, or an object path that runs into a static box.
+            the start, an object path that runs into a static box, or a relation not met
+            (:func:`_check_relation`); its ``reason`` says which in a few words.
     """
     if len(layout.statics) != skill.num_static:
         raise LayoutError(f"layout refused: it places {len(layout.statics)} static box(es), the "
-                          f"{skill.action} skill has {skill.num_static}")
+                          f"{skill.action} skill has {skill.num_static}", reason="static box count")
     static_pos, static_rot = _statics(skill, layout)
     size = skill.object_size if layout.object_size is None else np.asarray(layout.object_size)
     object_pos, object_rot = _object_path(skill, layout, size, static_pos, static_rot)
@@ -207,6 +230,7 @@ def apply_skill(skill: Skill, layout: Layout) -> Reconstruction:
         camera_elevation=skill.camera_elevation, camera_height=skill.camera_height, image_size=skill.image_size,
         action=skill.action, loss=skill.loss)
     _check_overlaps(recon)
+    _check_relation(recon)
     return recon
 
 
@@ -226,26 +250,30 @@ def _object_path(skill: Skill, layout: Layout, size: np.ndarray, static_pos: np.
 
     The demonstrated motion from the new start, resting as deep as before (a resized
     object keeps its bottom's heights); a ``put_*`` path bends, with the progress along
-    it, to end at the release relative to the static box; a carried object is lifted
+    it, to end at the release relative to the static box, and settles from there as it did
+    relative to the box (next to, onto) or to the camera (behind, in front of); a carried object is lifted
     over the static boxes in its way (:func:`_carry_lift`); an object put onto the box
     rests on its top from the release on, at most :data:`GRAZE` deep in it
     (:func:`_on_top_floor`).
     """
     x, y, yaw = layout.object
     demo_pos, demo_rot, motion_pos, motion_rot = _motion(skill)
-    start_rot = rot_z(yaw - heading(demo_rot)) @ demo_rot
-    rot = motion_rot @ start_rot
+    turn = rot_z(yaw - heading(demo_rot))
+    start_rot = turn @ demo_rot
+    rot = motion_rot @ start_rot if _world_directed(skill.action) else turn @ motion_rot @ demo_rot
     start = np.array([x, y, demo_pos[2]])
     up = np.array([0.0, 0.0, 1.0])
     start[2] += support_extent(start_rot, size, up) - support_extent(demo_rot, skill.object_size, up)
     pos = start + motion_pos
     k_on, k_off = skill.frames()
-    if skill.action.startswith("put_") and k_off is not None and skill.num_static:
-        target = _release_point(skill, pos[k_off], rot[k_off], size, static_pos[0], static_rot[0])
-        pos += _progress(motion_pos, k_on, k_off)[:, None] * (target - pos[k_off])
+    if skill.action.startswith("put_") and skill.num_static:
+        k = release_frame(skill.grasped)  # a put held to the video's end meets its relation there
+        target = _release_point(skill, pos[k], rot[k], size, static_pos[0], static_rot[0])
+        pos += _progress(motion_pos, k_on, k)[:, None] * (target - pos[k])
+        pos[k:] = pos[k] + (pos[k:] - pos[k]) @ _relation_turn(skill, static_rot[0]).T  # settling beside it
         if skill.action == "put_onto":
-            floor = _on_top_floor(pos[k_off:], rot[k_off:], size, static_pos[0], static_rot[0], skill.static_size[0])
-            pos[k_off:, 2] = np.maximum(pos[k_off:, 2], floor)
+            floor = _on_top_floor(pos[k:], rot[k:], size, static_pos[0], static_rot[0], skill.static_size[0])
+            pos[k:, 2] = np.maximum(pos[k:, 2], floor)
     if not _world_directed(skill.action):
         pos[:, 2] += _carry_lift(pos, rot, size, (static_pos, static_rot, skill.static_size), k_on, k_off, skill.fps)
     return pos, rot
@@ -253,23 +281,62 @@ def _object_path(skill: Skill, layout: Layout, size: np.ndarray, static_pos: np.
 
 def _release_point(skill: Skill, where: np.ndarray, rot: np.ndarray, size: np.ndarray, static_pos: np.ndarray,
                    static_rot: np.ndarray) -> np.ndarray:
-    """(3,) the release centre relative to the static box: its height ``where[2]`` kept."""
-    offset = skill.release_offset.copy()
+    """(3,) the release centre of the object (rotation ``rot``, edges ``size`` [m]) relative to the
+    static box at ``static_pos``, ``static_rot`` as the module doc keeps each relation; its
+    height ``where[2]`` kept."""
+    local = skill.static_rot[0].T @ skill.release_offset  # in the demonstrated box's frame
     if skill.action == "put_onto":  # on the box: the centre inside its top, ONTO_INSET from the edges
-        local = static_rot.T @ offset
         half = 0.5 * skill.static_size[0, :2]
         limit = np.maximum(half - ONTO_INSET, 0.5 * half)
         local[:2] = np.clip(local[:2], -limit, limit)
-        offset = static_rot @ local
-    else:  # beside the box: the gap between the world extents is kept
-        axis = int(np.argmax(np.abs(offset[:2])))
-        direction = np.eye(3)[axis]
-        reach = (support_extent(static_rot, skill.static_size[0], direction)
-                 + support_extent(rot, size, direction))
-        offset[axis] = math.copysign(reach + max(skill.release_gap, 0.0), offset[axis])
-    target = static_pos + offset
+        target = static_pos + static_rot @ local
+    else:  # beside the box: the demonstrated gap out of the side, the offset along it clamped to it
+        _, along_demo = _sides(skill.action, local, skill.static_rot[0])
+        out, along = _sides(skill.action, local, static_rot)
+        width = support_extent(static_rot, skill.static_size[0], along)
+        reach = support_extent(static_rot, skill.static_size[0], out) + support_extent(rot, size, out)
+        lateral = float(np.clip(skill.release_offset @ along_demo, -width, width))
+        target = static_pos + (reach + max(skill.release_gap, 0.0)) * out + lateral * along
     target[2] = where[2]
     return target
+
+
+def _relation_turn(skill: Skill, static_rot: np.ndarray) -> np.ndarray:
+    """(3, 3) the turn about z from the demonstrated put's relation frame to the layout's: the
+    static box's (rotation ``static_rot``) turn for next to and onto, none for behind and in
+    front of (the camera's frame)."""
+    if skill.action in ("put_behind", "put_in_front_of"):
+        return np.eye(3)
+    return rot_z(heading(static_rot) - heading(skill.static_rot[0]))
+
+
+def _sides(action: str, local: np.ndarray, static_rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit horizontal world directions (3,) out of a static box (rotation ``static_rot``) to the
+    side a put beside it releases on, and along that side, for the demonstrated release offset
+    ``local`` (3,) [m] in the demonstrated box's frame: for ``put_next_to`` the box's own
+    horizontal axis nearest ``local`` (towards it) and the other one; for ``put_behind`` /
+    ``put_in_front_of`` the camera's :data:`VIEW` / its opposite and the world x axis."""
+    if action == "put_next_to":
+        i = int(np.argmax(np.abs(local[:2])))
+        return math.copysign(1.0, local[i]) * _horizontal(static_rot[:, i]), _horizontal(static_rot[:, 1 - i])
+    return (VIEW if action == "put_behind" else -VIEW), np.array([1.0, 0.0, 0.0])
+
+
+def _horizontal(axis: np.ndarray) -> np.ndarray:
+    """(3,) the unit horizontal part of ``axis`` (3,)."""
+    flat = np.array([axis[0], axis[1], 0.0])
+    return flat / np.linalg.norm(flat)
+
+
+def _release_gap(action: str, offset: np.ndarray, static_rot: np.ndarray, static_size: np.ndarray,
+                 rot: np.ndarray, size: np.ndarray) -> float:
+    """[m] the gap between a static box (rotation, edges) and an object (rotation, edges) released at
+    ``offset`` (3,) [m, world axes] from the box's centre, along the side of :func:`_sides`
+    (negative: they overlap); 0 for ``put_onto``."""
+    if action == "put_onto":
+        return 0.0
+    out, _ = _sides(action, static_rot.T @ offset, static_rot)
+    return float(offset @ out) - (support_extent(static_rot, static_size, out) + support_extent(rot, size, out))
 
 
 def _hand_path(skill: Skill, object_pos: np.ndarray, object_rot: np.ndarray,
@@ -375,14 +442,33 @@ def _check_overlaps(recon: Reconstruction) -> None:
         for j in range(i + 1, len(statics)):
             depth = overlap_depth(*statics[i], *statics[j])
             if depth > OVERLAP_TOLERANCE:
-                raise LayoutError(f"layout refused: static boxes {i} and {j} overlap ({100 * depth:.1f} cm deep)")
+                raise LayoutError(f"layout refused: static boxes {i} and {j} overlap ({100 * depth:.1f} cm deep)",
+                                  reason="footprints overlap")
     for k, static in enumerate(statics):
         for f in range(recon.num_frames):
             depth = overlap_depth(recon.object_pos[f], recon.object_rot[f], recon.object_size, *static)
             if depth > OVERLAP_TOLERANCE:
                 where = "start" if f == 0 else f"path at t = {recon.t[f]:.2f} s"
                 raise LayoutError(f"layout refused: the object's {where} overlaps static box {k} "
-                                  f"({100 * depth:.1f} cm deep)")
+                                  f"({100 * depth:.1f} cm deep)",
+                                  reason="footprints overlap" if f == 0 else "path runs into a static box")
+
+
+def _check_relation(recon: Reconstruction) -> None:
+    """Refuse a pick-up or put whose laid-out scene (the path the plan will follow, before any
+    planning) fails the action's own checks (:func:`~warpskill.contract.evaluation.evaluate`):
+    a next-to side turned to face the camera, a release not resting below the box's top."""
+    action = str(recon.action)
+    if _world_directed(action):
+        return
+    failed = [name for name, ok in evaluate(recon, action).checks.items() if not ok]
+    if failed:
+        x, y, _ = recon.object_pos[-1]
+        statics = "".join(f", static box {k} at ({p[0]:.2f}, {p[1]:.2f}) m"
+                          for k, p in enumerate(recon.static_pos[:1]))
+        raise LayoutError(f"layout refused: the {action.replace('_', ' ')} relation cannot be met: the laid-out "
+                          f"scene fails {', '.join(failed)} (object ending at ({x:.2f}, {y:.2f}) m{statics})",
+                          reason="relation not met")
 
 
 def skill_from(recon: Reconstruction) -> Skill:
@@ -407,11 +493,11 @@ def skill_from(recon: Reconstruction) -> Skill:
         hand_pos = np.einsum("nji,nj->ni", ref_rot, recon.hand_pos - ref_pos)
         hand_rot = np.swapaxes(ref_rot, 1, 2) @ recon.hand_rot
     offset, gap = np.zeros(3), 0.0
-    if action.startswith("put_") and recon.num_static and k_off is not None:
-        offset = recon.object_pos[k_off] - recon.static_pos[0]
-        axis = np.eye(3)[int(np.argmax(np.abs(offset[:2])))]
-        gap = abs(float(offset @ axis)) - (support_extent(recon.static_rot[0], recon.static_size[0], axis)
-                                           + support_extent(recon.object_rot[k_off], recon.object_size, axis))
+    if action.startswith("put_") and recon.num_static:
+        k = release_frame(recon.grasped)
+        offset = recon.object_pos[k] - recon.static_pos[0]
+        gap = _release_gap(action, offset, recon.static_rot[0], recon.static_size[0], recon.object_rot[k],
+                           recon.object_size)
     fps = float(recon.fps)
     return Skill(
         action=action, fps=fps, t=recon.t.copy(), grasp=recon.grasp.copy(), grasped=recon.grasped.copy(),
