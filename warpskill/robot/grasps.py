@@ -9,6 +9,9 @@ the cuboid's faces named by the world direction they face at the contact onset:
   object is set down beside it;
 - ``edge_*``: 45 degrees down onto the top edge of a side face, fingers across that face;
 - ``side_*``: horizontally onto a side face, fingers across it;
+- ``rim_*`` (open-topped objects: a cup, a mug, a bowl, of any width): from above onto the
+  rim of a side face's wall, fingers closing across the wall (:data:`RIM_WALL` thick), one
+  inside the vessel and one outside, :func:`rim_depth` below the rim;
 - ``push_*``: closed fingers against a side face, 30, 45 or 60 degrees down, at the
   demonstrated height;
 - ``hook_*`` (pulls of cuboids too wide to grasp): closed fingers reach over the cuboid from
@@ -17,7 +20,7 @@ the cuboid's faces named by the world direction they face at the contact onset:
   the straight approach clears the top edge) and move onto it while the gripper would close.
 
 Grasps need the edge length between the fingers to fit the opening (:data:`MAX_OPENING`
-less a margin); pushes need none.
+less a margin), rims only a wall tall enough for the pads (:func:`rim_fits`); pushes need none.
 """
 
 from __future__ import annotations
@@ -27,20 +30,22 @@ import math
 
 import numpy as np
 
-from warpskill.robot.model import MAX_OPENING
+from warpskill.robot.model import MAX_OPENING, RIM_WALL
 
 FIT_MARGIN = 0.006  # [m] the object must be this much narrower than the full opening
 TOP_DEPTH = 0.03  # [m] how far below the top face the finger pads' centre goes
 SHALLOW_DEPTH = 0.015  # [m] the same for a shallow top grasp
 EDGE_DEPTH = 0.025  # [m] how far past the top edge (along the approach) the pads' centre goes
 SIDE_DEPTH = 0.03  # [m] how far into a side face the pads' centre goes
-FINGERTIP_BELOW_TCP = 0.012  # [m] the finger pads end this far beyond the TCP along the approach
+FINGERTIP_BELOW_TCP = 0.0095  # [m] the finger pads end this far beyond the TCP along the approach (panda.urdf's pad box)
 TABLE_CLEARANCE = 0.006  # [m] a top grasp's fingertips stay this far above the object's bottom (planner: 5 mm)
 MIN_PUSH_HEIGHT = 0.02  # [m] lowest TCP height above the object's bottom for a push (the fingertips clear the table)
 PUSH_BELOW_TOP = 0.005  # [m] a push's TCP stays this far below the top face (thin objects: pressed at their top edge)
 HOOK_HEIGHT = 0.02  # [m] TCP height above the object's bottom of a hook (low: lagging fingers ride over a higher one)
 HOOK_OFFSET = 0.012  # [m] TCP outside the hooked face: the closed fingers' half thickness
 HOOK_CLEARANCE = 0.015  # [m] the approaching fingertips pass this far outside the hooked face's top edge
+RIM_DEPTH = 0.025  # [m] how far below the rim the pads' centre goes (less on a low vessel: rim_depth)
+MIN_RIM_DEPTH = 0.01  # [m] the least of it: a lower vessel's rim is not grasped
 SLANT_WEIGHT = 2.0  # [deg per deg] cost of a pressing pose's horizontal slant to the push direction
 
 
@@ -75,6 +80,18 @@ def _frame(approach: np.ndarray, fingers: np.ndarray, position: np.ndarray) -> n
     return T
 
 
+def rim_depth(height: float) -> float:
+    """[m] how far below the rim of an open vessel ``height`` [m] tall a rim grasp's TCP goes: :data:`RIM_DEPTH`,
+    less where the inner fingertip would come nearer the inside bottom than :data:`TABLE_CLEARANCE`."""
+    return min(RIM_DEPTH, height - RIM_WALL - FINGERTIP_BELOW_TCP - TABLE_CLEARANCE)
+
+
+def rim_fits(height: float) -> bool:
+    """Whether an open vessel ``height`` [m] tall has a rim the gripper holds (:func:`rim_depth` at least
+    :data:`MIN_RIM_DEPTH`)."""
+    return rim_depth(height) >= MIN_RIM_DEPTH
+
+
 def _axis_name(world_dir: np.ndarray) -> str:
     """'+x', '-y', ... for the world axis closest to ``world_dir``."""
     i = int(np.argmax(np.abs(world_dir[:2])))
@@ -82,7 +99,7 @@ def _axis_name(world_dir: np.ndarray) -> str:
 
 
 def candidate_poses(object_rot: np.ndarray, object_size: np.ndarray, *, push_height: float | None = None,
-                    pushing: bool = False, hooking: bool = False) -> list[GraspPose]:
+                    pushing: bool = False, hooking: bool = False, open_top: bool = False) -> list[GraspPose]:
     """All predefined poses on a cuboid of ``object_size`` at rotation ``object_rot`` (onset frame).
 
     Args:
@@ -92,6 +109,7 @@ def candidate_poses(object_rot: np.ndarray, object_size: np.ndarray, *, push_hei
             (pushes only; clipped to the face).
         pushing: return push poses (True) or grasp poses (False).
         hooking: with grasp poses, also return hook poses (for pulls).
+        open_top: with grasp poses, also return rim poses (an open vessel, open at its top at the onset).
     """
     size = np.asarray(object_size, float)
     up_world = object_rot.T @ np.array([0.0, 0.0, 1.0])  # world up in the cuboid's frame
@@ -153,6 +171,21 @@ def candidate_poses(object_rot: np.ndarray, object_size: np.ndarray, *, push_hei
             side_depth = min(SIDE_DEPTH, half_n)
             poses.append(GraspPose(f"side_{face}{flip}", "grasp", _frame(-n, fingers, n * (half_n - side_depth)),
                                    float(size[j])))
+    if open_top and rim_fits(2 * top):
+        poses += _rim_poses(faces, size, up, top)
+    return poses
+
+
+def _rim_poses(faces: list, size: np.ndarray, up: np.ndarray, top: float) -> list[GraspPose]:
+    """From above onto the rim of each face's wall (outward normals ``faces``, cuboid frame), the fingers
+    closing across the wall: the TCP at the wall's mid-thickness, :func:`rim_depth` below the top ``top``."""
+    poses = []
+    depth = rim_depth(2 * top)
+    for n, _, face in faces:
+        position = n * (size[int(np.argmax(np.abs(n)))] / 2 - RIM_WALL / 2) + up * (top - depth)
+        for sign in (1.0, -1.0):
+            flip = "" if sign > 0 else "_flip"
+            poses.append(GraspPose(f"rim_{face}{flip}", "grasp", _frame(-up, sign * n, position), RIM_WALL))
     return poses
 
 

@@ -20,6 +20,7 @@ import numpy as np
 
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.geometry import rot_z
+from warpskill.nouns.typical import is_open_topped
 from warpskill.robot.scene_config import load_scene_config
 
 ARM_JOINTS: tuple[str, ...] = tuple(f"panda_joint{i}" for i in range(1, 8))
@@ -36,6 +37,9 @@ HOME_Q = np.array([0.0, -0.785398, 0.0, -2.35619, 0.0, 1.5707, 0.785398])
 
 MAX_OPENING = 0.08
 """Largest gripper opening [m] (each finger 0 .. 0.04 m)."""
+
+RIM_WALL = 0.005
+"""[m] wall (and bottom) thickness of an open-topped object (:func:`object_boxes`): a cup's or a bowl's."""
 
 FINGER_SPEED = 0.2
 """Largest speed [m/s] of each finger (the URDF's limit)."""
@@ -142,6 +146,28 @@ def make_scene(recon: Reconstruction, placement: Placement | None = None, *, bas
     )
 
 
+def object_boxes(recon: Reconstruction) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The manipulated object as boxes in its own frame: ``(centre (3,), half extents (3,))`` [m] each.
+
+    The cuboid; an open vessel (its noun :func:`~warpskill.nouns.typical.is_open_topped`) is
+    the cuboid open at the face that is up in the first frame: its bottom and four side walls,
+    :data:`RIM_WALL` thick, so that a rim grasp's inner finger goes inside.
+    """
+    half = np.asarray(recon.object_size, float) / 2
+    if not is_open_topped(str(recon.object_noun)):
+        return [(np.zeros(3), half)]
+    up_world = recon.object_rot[0][2]  # world up in the object's frame
+    up = int(np.argmax(np.abs(up_world)))
+    sides = [(up, -math.copysign(1.0, up_world[up]))]  # the bottom
+    sides += [(j, sign) for j in range(3) if j != up for sign in (1.0, -1.0)]  # the walls
+    boxes = []
+    for axis, side in sides:
+        centre, extent = np.zeros(3), half.copy()
+        centre[axis], extent[axis] = side * (half[axis] - RIM_WALL / 2), RIM_WALL / 2
+        boxes.append((centre, extent))
+    return boxes
+
+
 @functools.cache
 def panda_description_dir() -> Path:
     """Folder of the Panda description (``urdf/``, ``srdf/``, ``meshes/``) in ``example-robot-data``.
@@ -166,14 +192,36 @@ def panda_urdf(*, collision: str = "primitives") -> str:
 
     Args:
         collision: ``"primitives"`` (spheres and cylinders that cover each link, used by the
-            planner) or ``"meshes"`` (the convex collision meshes, used by the simulators).
+            planner; each finger's tip is the simulated rubber pad, :func:`_pad_tips`) or
+            ``"meshes"`` (the convex collision meshes and the fingers' boxes, used by the simulators).
     """
     if collision not in ("primitives", "meshes"):
         raise ValueError(f"collision must be 'primitives' or 'meshes', got {collision!r}")
     folder = panda_description_dir()
     name = "panda_collision.urdf" if collision == "primitives" else "panda.urdf"
     text = (folder / "urdf" / name).read_text()
+    if collision == "primitives":
+        text = _pad_tips(text)
     return text.replace(_PACKAGE_PREFIX, str(folder.parent) + "/")
+
+
+_TIP_SPHERE = re.compile(r'<origin xyz="0 (-?)15e-3 45e-3"/>(\s*)<geometry>\s*<sphere radius="0.015"/>')
+
+
+def _pad_tips(text: str) -> str:
+    """The primitives' URDF ``text`` with each finger's tip sphere replaced by the rubber pad box the
+    simulators collide (``panda.urdf``'s): the sphere (radius 15 mm) reaches 14.5 mm beyond the TCP
+    along the approach, the pad only 9.5 mm, so that the planner kept a flat object's pads above
+    its top (a 1 cm card was never touched).
+
+    Raises:
+        RobotModelError: the file has no such tip spheres (another ``example-robot-data``).
+    """
+    out, count = _TIP_SPHERE.subn(r'<origin xyz="0 \g<1>7.58e-3 45.25e-3"/>\2<geometry><box size="17.5e-3 15.2e-3 18.5e-3"/>',
+                                  text)
+    if count != 2:
+        raise RobotModelError(f"the Panda's collision primitives have {count} fingertip spheres, not 2")
+    return out
 
 
 def _origin(T: np.ndarray) -> str:

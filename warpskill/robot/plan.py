@@ -20,7 +20,8 @@ Keys of the plan ``.npz`` (units: seconds, radians, metres):
 | ``placement`` | () str | ``auto`` (searched) or ``given`` |
 | ``object_size``, ``object_pos``, ``object_rot`` | (3,), (F, 3), (F, 3, 3) | the object the robot handles: its size, centre path and (upright) rotations (reconstruction frames); one carried into view rests until the robot takes it |
 | ``static_size``, ``static_pos``, ``static_rot`` | (K, 3), (K, 3), (K, 3, 3) | the static cuboids the robot works with |
-| ``note`` | () str | what was changed for the robot (a substituted object), or empty |
+| ``note`` | () str | what was changed for the robot (a substituted object, a rim grasp), or empty |
+| ``object_noun`` | () str | what the object is (the reconstruction's ``object_noun``): an open vessel is simulated open (:func:`~warpskill.robot.model.object_boxes`); absent: unknown |
 | ``layout_object``, ``layout_static``, ``layout_object_size`` | (3,), (K, 3), (3,) | the :class:`~warpskill.contract.skill.Layout` the skill was carried to (x, y, yaw); absent: the demonstrated layout |
 
 The sizes and poses are those the replays simulate (:meth:`RobotPlan.scene`); plans
@@ -76,6 +77,7 @@ class RobotPlan:
     static_pos: np.ndarray | None = None
     static_rot: np.ndarray | None = None
     note: str = ""
+    object_noun: str = ""
     layout: Layout | None = None
 
     @property
@@ -103,8 +105,9 @@ class RobotPlan:
         for name in ("object_pos", "object_rot"):
             if name in changes and len(changes[name]) != recon.num_frames:
                 changes.pop(name)
-        same = all(np.shape(value) == np.shape(getattr(recon, name)) and np.allclose(value, getattr(recon, name))
-                   for name, value in changes.items())
+        if self.object_noun:
+            changes["object_noun"] = np.array(self.object_noun)
+        same = all(_same(value, getattr(recon, name)) for name, value in changes.items())
         return recon if same else dataclasses.replace(recon, **changes)
 
     def phases(self) -> np.ndarray:
@@ -152,12 +155,19 @@ class RobotPlan:
             if name not in arrays:
                 continue
             value = arrays[name]
-            if name in ("grasp_name", "grasp_kind", "action", "placement", "note"):
+            if name in ("grasp_name", "grasp_kind", "action", "placement", "note", "object_noun"):
                 value = str(value)
             elif value.ndim == 0 and name != "offset":
                 value = float(value)
             kwargs[name] = value
         return cls(**kwargs)
+
+
+def _same(value: np.ndarray, given: np.ndarray) -> bool:
+    """Whether a plan's field equals the reconstruction's (numbers within ``np.allclose``'s tolerance)."""
+    if np.shape(value) != np.shape(given):
+        return False
+    return bool(np.array_equal(value, given) if value.dtype.kind == "U" else np.allclose(value, given))
 
 
 CLOSE_TIME = 0.6  # [s] the gripper closes (and the arm waits) at the grasp

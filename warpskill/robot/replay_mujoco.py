@@ -4,7 +4,7 @@ The arm joints track the plan's joint positions (interpolated linearly at every 
 step) with stiff position actuators and gravity compensation; each finger has a position
 actuator whose force is capped (``panda.grip_force``), so a closed command squeezes the
 object. The manipulated cuboid is a free body (:data:`OBJECT_BODY`) of ``object.mass`` and
-``contact.friction``; the table and static cuboids are fixed boxes. Every value (and the
+``contact.friction`` (an open vessel's: its bottom and walls, :func:`~warpskill.robot.model.object_boxes`); the table and static cuboids are fixed boxes. Every value (and the
 video's lights and colours, which change no physics) comes from the scene description
 ``assets/robot_scene.toml`` (:func:`~warpskill.robot.scene_config.load_scene_config`).
 """
@@ -21,12 +21,13 @@ from warpskill.robot.model import (
     environment_boxes,
     make_scene,
     mujoco_urdf,
+    object_boxes,
 )
 from warpskill.robot.plan import RobotPlan
 from warpskill.robot.scene_config import load_scene_config
 
 OBJECT_BODY = "object"
-"""Name of the manipulated cuboid's body (and of its box geom) in the model."""
+"""Name of the manipulated cuboid's body (and of its first box geom) in the model."""
 
 OBJECT_JOINT = "object_free"
 """Name of the manipulated cuboid's free joint in the model."""
@@ -92,9 +93,13 @@ def build_spec(recon: Reconstruction, base_pose: np.ndarray):
                        rgba=config.table.rgba if name == "table" else config.static.rgba)
     obj = world.add_body(name=OBJECT_BODY, pos=recon.object_pos[0], quat=mujoco_quaternion(recon.object_rot[0]))
     obj.add_freejoint(name=OBJECT_JOINT)
-    obj.add_geom(name=OBJECT_BODY, type=mujoco.mjtGeom.mjGEOM_BOX, size=recon.object_size / 2, mass=config.object.mass,
-                 friction=contact.mujoco_friction, condim=contact.condim, contype=1, conaffinity=3,
-                 solref=[config.mujoco.object_contact_timeconst, 1.0], rgba=config.object.rgba)
+    boxes = object_boxes(recon)
+    volume = sum(float(np.prod(half)) for _, half in boxes)
+    for i, (centre, half) in enumerate(boxes):
+        obj.add_geom(name=OBJECT_BODY if i == 0 else f"{OBJECT_BODY}{i}", type=mujoco.mjtGeom.mjGEOM_BOX, pos=centre,
+                     size=half, mass=config.object.mass * float(np.prod(half)) / volume,
+                     friction=contact.mujoco_friction, condim=contact.condim, contype=1, conaffinity=3,
+                     solref=[config.mujoco.object_contact_timeconst, 1.0], priority=1, rgba=config.object.rgba)
     spec.add_exclude(bodyname1="panda_link0", bodyname2="world")
     spec.add_exclude(bodyname1="panda_link1", bodyname2="world")
     kv = panda.arm_kv
@@ -168,7 +173,7 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, video
     mujoco.mj_forward(model, data)
     tcp_body = model.body(TCP_FRAME).id
     obj_body = model.body(OBJECT_BODY).id
-    obj_geom = model.geom(OBJECT_BODY).id
+    obj_geoms = set(np.flatnonzero(model.geom_bodyid == obj_body).tolist())
     finger_bodies = {model.body("panda_leftfinger").id, model.body("panda_rightfinger").id}
     timestep = model.opt.timestep
     steps = int(np.ceil(times[-1] / timestep)) + 1
@@ -186,9 +191,8 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, video
             out["object_rot"].append(data.xmat[obj_body].reshape(3, 3).copy())
             touching = set()
             for c in data.contact[: data.ncon]:
-                if obj_geom in (c.geom1, c.geom2):
-                    other = c.geom2 if c.geom1 == obj_geom else c.geom1
-                    touching.add(int(model.geom_bodyid[other]))
+                if c.geom1 in obj_geoms or c.geom2 in obj_geoms:
+                    touching.add(int(model.geom_bodyid[c.geom2 if c.geom1 in obj_geoms else c.geom1]))
             out["held"].append(float(finger_bodies <= touching))
             out["q"].append(data.qpos[arm_qpos].copy())
             if renderer is not None:

@@ -3,7 +3,8 @@
 The scene is the one of :mod:`warpskill.robot.replay_mujoco`: the Panda URDF of
 ``example-robot-data`` (its collision meshes, loaded by Newton's URDF importer, which needs
 ``trimesh``), the table and static cuboids as fixed boxes, the manipulated cuboid as a free
-body of ``object.mass``, every contact with ``contact.friction`` (``assets/robot_scene.toml``). Newton's own collision pipeline makes the
+body of ``object.mass`` (an open vessel's: its bottom and walls, :func:`~warpskill.robot.model.object_boxes`),
+every contact with ``contact.friction`` (``assets/robot_scene.toml``). Newton's own collision pipeline makes the
 contacts, so the check does not reuse MuJoCo.
 
 The robot is a dynamic articulation under position control, as in MuJoCo: every arm joint
@@ -65,6 +66,7 @@ from warpskill.robot.model import (
     FINGER_JOINTS,
     environment_boxes,
     make_scene,
+    object_boxes,
     panda_urdf,
 )
 from warpskill.robot.plan import RobotPlan
@@ -112,7 +114,7 @@ def build_model(plan: RobotPlan, recon: Reconstruction, *, device: str | None = 
 
     Returns:
         ``(model, info)`` where ``info`` maps ``arm_coords``, ``finger_coords`` (``joint_q`` and
-        ``joint_target_q`` indices), ``tcp_body``, ``object_body``, ``object_shape``,
+        ``joint_target_q`` indices), ``tcp_body``, ``object_body``, ``object_shapes``,
         ``finger_bodies``, ``robot_bodies``.
     """
     recon = plan.scene(recon)  # the cuboids as the plan handles them (sizes, poses: the object's start too)
@@ -156,11 +158,15 @@ def build_model(plan: RobotPlan, recon: Reconstruction, *, device: str | None = 
     T0 = np.eye(4)
     T0[:3, :3] = recon.object_rot[0]
     T0[:3, 3] = recon.object_pos[0]
-    size = np.asarray(recon.object_size, dtype=float)
-    obj_cfg = newton.ModelBuilder.ShapeConfig(mu=friction, gap=gap, density=config.object.mass / float(np.prod(size)))
+    boxes = object_boxes(recon)
+    volume = 8.0 * sum(float(np.prod(half)) for _, half in boxes)
+    obj_cfg = newton.ModelBuilder.ShapeConfig(mu=friction, gap=gap, density=config.object.mass / volume)
     obj = builder.add_body(xform=_transform(T0), label="object")
-    hx, hy, hz = (float(v) for v in size / 2)
-    obj_shape = builder.add_shape_box(obj, hx=hx, hy=hy, hz=hz, cfg=obj_cfg, label="object")
+    obj_shapes = []
+    for i, (centre, half) in enumerate(boxes):
+        hx, hy, hz = (float(v) for v in half)
+        obj_shapes.append(builder.add_shape_box(obj, xform=wp.transform(wp.vec3(*centre), wp.quat_identity()), hx=hx,
+                                                hy=hy, hz=hz, cfg=obj_cfg, label="object" if i == 0 else f"object{i}"))
     model = builder.finalize(device=device)
     info = {
         "arm_coords": coords[:7],
@@ -168,7 +174,7 @@ def build_model(plan: RobotPlan, recon: Reconstruction, *, device: str | None = 
         "tcp_body": _label(bodies, "panda_link7"),
         "robot_bodies": robot_bodies,
         "object_body": obj,
-        "object_shape": obj_shape,
+        "object_shapes": obj_shapes,
         "finger_bodies": sorted(_label(bodies, name) for name in _FINGER_LINKS),
     }
     return model, info
@@ -234,7 +240,7 @@ def simulate(plan: RobotPlan, recon: Reconstruction, times: np.ndarray, *, devic
         for step in range(steps):
             if times[k] <= t[step] + 1e-9:
                 body_q, joint_q = state_0.body_q.numpy(), state_0.joint_q.numpy()
-                touched = {int(shape_body[s]) for s in _touching(contacts, info["object_shape"], body_q, shape_body)}
+                touched = {int(shape_body[s]) for s in _touching(contacts, info["object_shapes"], body_q, shape_body)}
                 P = _pose(body_q[info["object_body"]])
                 while k < len(times) and times[k] <= t[step] + 1e-9:
                     out["tcp"].append(_pose(body_q[info["tcp_body"]]) @ tcp_offset)
@@ -287,12 +293,13 @@ def _capture(advance, state_0, state_1):
     return graphs
 
 
-def _touching(contacts, shape: int, body_q: np.ndarray, shape_body: np.ndarray, *, tolerance: float = 1e-3) -> set[int]:
-    """Shapes within ``tolerance`` [m] of ``shape`` (or penetrating it)."""
+def _touching(contacts, shapes: list[int], body_q: np.ndarray, shape_body: np.ndarray, *,
+              tolerance: float = 1e-3) -> set[int]:
+    """Other shapes within ``tolerance`` [m] of one of ``shapes`` (or penetrating it)."""
     n = int(contacts.rigid_contact_count.numpy()[0])
     a = contacts.rigid_contact_shape0.numpy()[:n]
     b = contacts.rigid_contact_shape1.numpy()[:n]
-    sel = np.flatnonzero((a == shape) | (b == shape))
+    sel = np.flatnonzero(np.isin(a, shapes) | np.isin(b, shapes))
     if len(sel) == 0:
         return set()
     points = []
@@ -309,4 +316,4 @@ def _touching(contacts, shape: int, body_q: np.ndarray, shape_body: np.ndarray, 
     margin = contacts.rigid_contact_margin0.numpy()[sel] + contacts.rigid_contact_margin1.numpy()[sel]
     distance = np.einsum("ij,ij->i", normal, points[1] - points[0]) - margin
     close = sel[distance <= tolerance]
-    return {int(s) for s in a[close]} | {int(s) for s in b[close]} - {shape}
+    return ({int(s) for s in a[close]} | {int(s) for s in b[close]}) - set(shapes)

@@ -4,7 +4,8 @@
 
 1. the robot's reconstruction (:func:`robot_reconstruction`): the robot's own object sizes
    (:mod:`warpskill.robot.sizes`), or a substitute for a grasped cuboid wider than the
-   gripper on every face (``keep_size`` refuses instead); an object held from the first
+   gripper on every face that is no open vessel held by its rim (``keep_size`` refuses
+   instead); an object held from the first
    frame (carried into view: its start is unknown) starts resting below the first frame
    from which the robot can do the task, the grasp onset;
 2. grasp poses (:mod:`warpskill.robot.grasps`) ranked against the demonstrated approach;
@@ -46,6 +47,7 @@ import numpy as np
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.skill import Layout, Skill
 from warpskill.geometry import NEVER_HELD, held_span, is_held
+from warpskill.nouns.typical import is_open_topped
 from warpskill.robot.grasps import FIT_MARGIN, GraspPose, candidate_poses, rank_poses
 from warpskill.robot.model import HOME_Q, MAX_OPENING, Placement, Scene, make_scene
 from warpskill.robot.placement import WRIST, check_reach, rank_placements, reach_excess
@@ -72,7 +74,8 @@ AUTO = "auto"
 
 HOOK_PENALTY = 1000.0  # a pull hooks the cuboid only when no grasp is feasible
 SHALLOW_PENALTY = 100.0  # a shallow top grasp is taken only when the deeper ones are infeasible
-OFF_CENTRE_PENALTY = 45.0  # [deg equivalent] edge and side grasps hold a carried cuboid off its centre: it swings
+OFF_CENTRE_PENALTY = 45.0  # [deg equivalent] edge, side and rim grasps hold a carried cuboid off its centre: it swings
+RIM_PENALTY = 20.0  # [deg equivalent] a rim grasp comes after the face grasps (further off the centre)
 RELEASE_SHIFTS = (0.01, 0.02, 0.035, 0.05, 0.075, 0.1)  # [m] tried moves of the set-down place away from a static box, along the fingers
 SHIFT_PENALTY = 5000.0  # per metre of release shift
 NEAR_SHIFT = 0.05  # [m] a release shift further than this comes after every other grasp but a hook
@@ -184,6 +187,7 @@ def _plan_anywhere(recon: Reconstruction, placement: Placement | str | None, aut
         plan.static_pos = recon.static_pos.copy()
         plan.static_size = recon.static_size.copy()
         plan.static_rot = recon.static_rot.copy()
+        plan.object_noun = str(recon.object_noun)
         return plan
     raise errors[0]
 
@@ -298,12 +302,13 @@ def _task(recon: Reconstruction) -> dict:
     axis = recon.hand_rot[k_on][:, 2]
     push_height = float(R_on[:, 2] @ (recon.hand_pos[k_on] - recon.object_pos[k_on]))
     poses = candidate_poses(R_on, recon.object_size, push_height=push_height, pushing=pushing,
-                            hooking=action.startswith("pull_"))
+                            hooking=action.startswith("pull_"), open_top=is_open_topped(str(recon.object_noun)))
     if not poses:
         size = " x ".join(f"{s:.3f}" for s in recon.object_size)
         raise PlanError(
             f"frame {k_on} (t = {recon.t[k_on]:.2f} s, grasp onset): no feasible grasp: the {size} m cuboid is "
-            f"wider than the gripper's {MAX_OPENING - FIT_MARGIN:.3f} m usable opening across every face"
+            f"wider than the gripper's {MAX_OPENING - FIT_MARGIN:.3f} m usable opening across every face, "
+            "with no rim to hold"
         )
     ranked = rank_poses(poses, R_on, axis, push_direction=_push_direction(recon, k_on, k_off, axis) if same_side
                         else None)
@@ -317,9 +322,10 @@ def _task(recon: Reconstruction) -> dict:
 
 
 def _penalty(pose: GraspPose, height: float) -> float:
-    """The structural cost of a pose: hooks, shallow grasps, grasps off the centre (and edge grasps of a
-    tall object) come last."""
+    """The structural cost of a pose: hooks, shallow grasps, grasps off the centre (rims the furthest, and
+    edge grasps of a tall object) come last."""
     cost = HOOK_PENALTY if pose.standoff > 0 else 0.0
+    cost += RIM_PENALTY if pose.name.startswith("rim_") else 0.0
     cost += TALL_EDGE_PENALTY if pose.name.startswith("edge_") and height > TALL else 0.0
     cost += SHALLOW_PENALTY if pose.name.endswith("_shallow") else 0.0
     cost += OFF_CENTRE_PENALTY if pose.kind == "grasp" and not pose.name.startswith("top_") else 0.0

@@ -138,9 +138,11 @@ class MujocoConfig:
         impratio: frictional-to-normal constraint impedance ratio [-].
         integrator: ``"euler"``, ``"rk4"``, ``"implicit"`` or ``"implicitfast"``.
         object_contact_timeconst: time constant [s] of the object's contacts (its ``solref``,
-            critically damped; MuJoCo averages it with the other geom's default 0.02 s): with
-            the default a 40 N squeeze sinks a finger pad about 4 mm into a 2 cm thin object,
-            which then rides over its top edge; at least twice ``timestep``.
+            critically damped; the object's geoms have the higher ``priority``, so MuJoCo takes
+            it rather than averaging it with the other geom's default 0.02 s): with the default
+            a 40 N squeeze sinks a finger pad about 4 mm into a 2 cm thin object, which then
+            rides over its top edge (averaged, 3 mm into a 1 cm card as the fingers struck it);
+            at least twice ``timestep``.
     """
 
     timestep: float

@@ -18,9 +18,12 @@ in which the object rests below the frame the robot takes it over at
 no steps down).
 
 A grasp action (pick up, put ...) on an object wider than the gripper's usable opening on
-every face (both horizontal extents at the grasp onset) gets a substitute that fits: its
-horizontal extents capped at :data:`SUBSTITUTE_WIDTH`, its height kept. Pushes and pulls
-keep any size: they press with closed fingers or hook the far face.
+every face (both horizontal extents at the grasp onset) keeps its size where it is an open
+vessel whose rim the gripper holds (its noun :func:`~warpskill.nouns.typical.is_open_topped`,
+its wall tall enough: :func:`~warpskill.robot.grasps.rim_fits`), and otherwise gets a
+substitute that fits: its horizontal extents capped at :data:`SUBSTITUTE_WIDTH`, its height
+kept. The note says which, and why. Pushes and pulls keep any size: they press with closed
+fingers or hook the far face.
 """
 
 from __future__ import annotations
@@ -32,11 +35,12 @@ import numpy as np
 
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.geometry import held_span, is_held, release_frame
-from warpskill.robot.grasps import FIT_MARGIN
+from warpskill.nouns.typical import is_open_topped
+from warpskill.robot.grasps import FIT_MARGIN, rim_fits
 from warpskill.robot.model import MAX_OPENING
 
-__all__ = ["DESCENT_SPEED", "SUBSTITUTE_WIDTH", "USABLE_OPENING", "clear_path", "fit_sizes", "needs_substitute",
-           "rest_until", "resting_axis", "upright"]
+__all__ = ["DESCENT_SPEED", "SUBSTITUTE_WIDTH", "USABLE_OPENING", "clear_path", "fit_sizes", "held_by_rim",
+           "needs_substitute", "rest_until", "resting_axis", "upright"]
 
 USABLE_OPENING = MAX_OPENING - FIT_MARGIN
 """[m] widest object edge the gripper closes on."""
@@ -196,12 +200,35 @@ def resting_axis(recon: Reconstruction) -> int:
     return int(nearest[_onset(recon)])
 
 
-def needs_substitute(recon: Reconstruction, size: np.ndarray) -> bool:
+def _too_wide(recon: Reconstruction, size: np.ndarray) -> bool:
     """Whether a grasp action's cuboid of ``size`` is wider than the usable opening on every face."""
     if str(recon.action).startswith(("push_", "pull_")):
         return False
     up = resting_axis(recon)
     return bool(all(size[i] > USABLE_OPENING for i in range(3) if i != up))
+
+
+def held_by_rim(recon: Reconstruction, size: np.ndarray) -> bool:
+    """Whether a grasp action's cuboid of ``size``, too wide for any face, is an open vessel whose rim fits."""
+    return (_too_wide(recon, size) and is_open_topped(str(recon.object_noun))
+            and rim_fits(float(size[resting_axis(recon)])))
+
+
+def needs_substitute(recon: Reconstruction, size: np.ndarray) -> bool:
+    """Whether a grasp action's cuboid of ``size`` fits the gripper neither on a face nor by its rim."""
+    return _too_wide(recon, size) and not held_by_rim(recon, size)
+
+
+def _edges(size: np.ndarray) -> str:
+    """``size`` (3,) [m] as ``0.084 x 0.093 x 0.104``."""
+    return " x ".join(f"{s:.3f}" for s in size)
+
+
+def _no_rim(recon: Reconstruction, size: np.ndarray) -> str:
+    """Why a cuboid too wide for every face is not held by its rim either (for the substitution's note)."""
+    if not is_open_topped(str(recon.object_noun)):
+        return f" and no rim to hold (the {recon.object_noun or 'unnamed object'} is no open vessel)"
+    return f" and its {size[resting_axis(recon)]:.3f} m wall is too low for a rim grasp"
 
 
 def fit_sizes(recon: Reconstruction, *, object_size=None, static_sizes=None,
@@ -225,13 +252,16 @@ def fit_sizes(recon: Reconstruction, *, object_size=None, static_sizes=None,
                              f"{recon.num_static} static object(s)")
         statics = _sizes(static_sizes, (recon.num_static, 3), "the static sizes")
     notes = []
+    if held_by_rim(recon, size):
+        notes.append(f"object: the {_edges(size)} m {recon.object_noun} is wider than the gripper's "
+                     f"{USABLE_OPENING:.3f} m usable opening on every face: the robot holds it by its rim")
     if not keep_size and needs_substitute(recon, size):
         up = resting_axis(recon)
         old = size.copy()
         size = np.array([s if i == up else min(s, SUBSTITUTE_WIDTH) for i, s in enumerate(size)])
-        notes.append(f"object: the {' x '.join(f'{s:.3f}' for s in old)} m cuboid is wider than the gripper's "
-                     f"{USABLE_OPENING:.3f} m usable opening on every face: the robot handles a "
-                     f"{' x '.join(f'{s:.3f}' for s in size)} m one (height kept; --keep-size refuses instead)")
+        notes.append(f"object: the {_edges(old)} m cuboid is wider than the gripper's {USABLE_OPENING:.3f} m "
+                     f"usable opening on every face{_no_rim(recon, old)}: the robot handles a {_edges(size)} m "
+                     "substitute (height kept; --keep-size refuses instead)")
     given, recon = recon, _still_until_onset(recon)
     rot = recon.object_rot.copy()  # resting until the contact: it must rest on a face (later tilts are noise)
     rot[: _onset(recon) + 1] = upright(recon.object_rot[: _onset(recon) + 1])

@@ -103,7 +103,7 @@ def _paint(model) -> None:
     for g in range(model.ngeom):
         name = model.geom(g).name
         body = model.body(model.geom_bodyid[g]).name
-        if name == replay_mujoco.OBJECT_BODY:
+        if body == replay_mujoco.OBJECT_BODY:
             color = OBJECT_COLOR
         elif name.startswith("static"):
             color = STATIC_COLOR
