@@ -168,7 +168,8 @@ def make_demonstration(
             script = replace(script, camera_elevation=relation.camera_elevation)
         truth = _simulate(script, fps, duration)
         masks = _render(truth, intrinsics)
-        if _in_view(masks, partly=boxes, seen=0.5 if relation else 0.8) and (action == "pick_up" or not relation or _rests_in_view(masks, hidden=action == "put_behind")):
+        if _in_view(masks, partly=boxes, seen=0.5 if relation else 0.8) and (
+                not relation or _relation_seen(masks, truth, action)):
             break
     else:  # pragma: no cover - the scripts are built to stay in view
         raise RuntimeError(f"could not place a {action} scene in view")
@@ -277,14 +278,22 @@ def _render(truth: dict[str, np.ndarray], intrinsics: Intrinsics) -> np.ndarray:
     )
 
 
-def _rests_in_view(masks: np.ndarray, margin: int = 2, *, hidden: bool = False) -> bool:
-    """Whether the object ends inside the image, so that the relation to judge is seen: its
-    last frame's visible mask keeps ``margin`` px from the border and is not empty (it may be,
-    where ``hidden``: behind a static)."""
+def _relation_seen(masks: np.ndarray, truth: dict, action: str, margin: int = 2) -> bool:
+    """Whether a relations scene shows what its action is judged by: the object seen in at
+    least half the first half of the frames the hand holds it (a small object can vanish behind
+    the model hand; a pick-up may then carry it out of view), and a put action's object ending
+    inside the image (its last visible mask keeps ``margin`` px from the border; behind a
+    static it may be wholly hidden)."""
+    seen = masks[:, 1].reshape(len(masks), -1).any(1)
+    held = np.flatnonzero(is_held(truth["grasped"]))
+    if len(held) and seen[held[: max(1, len(held) // 2)]].mean() < 0.5:
+        return False
+    if action == "pick_up":
+        return True
     last = masks[-1, 1]
     inner = np.zeros(last.shape, bool)
     inner[margin:-margin, margin:-margin] = True
-    return not (last & ~inner).any() and (hidden or last.any())
+    return not (last & ~inner).any() and (action == "put_behind" or last.any())
 
 
 def _in_view(masks: np.ndarray, margin: int = 2, *, partly: bool = False, seen: float = 0.8) -> bool:

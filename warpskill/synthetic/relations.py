@@ -40,6 +40,10 @@ MIN_HEIGHT = 0.01
 ``PhysicsConfig.grasp_tau``, 1 mm) holds an object only with the tip some 5 mm inside it, so a
 card or a key is as thick as this."""
 
+SIDE_REACH_BELOW = 0.03
+"""[m] an object lower than this is reached from the side (``Variant.side_reach``): from the
+camera's side the model hand, a 4 cm cylinder, would hide it while it holds it."""
+
 CAMERA_ELEVATION = (0.3, 0.55)
 """[rad] range of the camera's elevation: lower than the default scenes', as a phone over a table."""
 
@@ -76,7 +80,8 @@ def relation_case(action: str, seed: int) -> RelationCase:
     static_size = _noun_size(static_noun, rng) if placed else None
     variant = draw_variant(action, seed, rng)
     variant = Variant(ending=variant.ending, far_start=variant.far_start, object_size=size, static_size=static_size,
-                      clear_static=True, tip_depth=min(TIP_DEPTH, 0.5 * size[2]))
+                      clear_static=True, tip_depth=min(TIP_DEPTH, 0.5 * size[2]),
+                      side_reach=size[2] < SIDE_REACH_BELOW)
     spoilers = tuple(name for name, p in RELATION_SPOILERS.items()
                      if (placed or name == "hand_partly_seen") and rng.random() < p)
     return RelationCase(variant, object_noun, static_noun, float(rng.uniform(*CAMERA_ELEVATION)), spoilers)

@@ -56,6 +56,7 @@ class Variant:
     static_size: tuple[float, float, float] | None = None  # [m] a put action's static edges (x, y, z) instead of drawn ones
     clear_static: bool = False  # carry the object over the static's top, and stand the static a gap beside it
     tip_depth: float = TIP_DEPTH  # [m] how deep the tip enters the object from its top (flat objects: less)
+    side_reach: bool = False  # the hand reaches a top grasp from the side, not from the camera's side
 
 
 NARROW_STATIC = ((0.4, 0.8), (0.12, 0.2))
@@ -198,6 +199,8 @@ def _hand_path(action: str, centre: np.ndarray, size: np.ndarray, static_pos: np
         path = [grasp + np.array([direction * u(0.15, 0.25), 0.0, 0.0])]
     else:
         axis = np.array([u(-0.4, 0.4), u(-0.7, -0.3), 1.0])
+        if variant is not None and variant.side_reach:  # a small object stays in sight beside the hand
+            axis = np.array([rng.choice([-1.0, 1.0]) * u(0.6, 1.0), u(-0.2, 0.2), 1.0])
         tip = variant.tip_depth if variant is not None else TIP_DEPTH
         grasp = centre + np.array([0.0, 0.0, size[2] / 2 - tip])
         lift = grasp + np.array([0.0, 0.0, u(0.12, 0.18)])
