@@ -215,7 +215,7 @@ def _bench_synthetic(args) -> int:
         init_only="the table already has the initialisation-only row"))
     actions = args.actions
     if actions is None and args.scenarios == "relations":
-        from warpskill.synthetic.relations import RELATION_ACTIONS
+        from warpskill.synthetic import RELATION_ACTIONS
         actions = list(RELATION_ACTIONS)
     bench_synthetic(options, seeds=args.seeds, noise=args.noise, actions=actions, out=args.out, input=args.input,
                     known=args.known_names, seed_start=args.seed_start, scenarios=args.scenarios,

@@ -16,7 +16,7 @@ and the benchmarks import it (``pyproject.toml``'s import contracts).
 
 from warpskill.lazy import lazy_exports
 
-_EXPORTS = {"export_lerobot": "dataset", "ExportError": "dataset", "ExportRequest": "dataset", "write_mjcf": "mjcf"}
-
-__all__ = sorted(_EXPORTS)
-__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
+__all__, __getattr__, __dir__ = lazy_exports(__name__, globals(), {
+    "dataset": ("export_lerobot", "ExportError", "ExportRequest"),
+    "mjcf": ("write_mjcf",),
+})

@@ -18,29 +18,15 @@ from __future__ import annotations
 
 from warpskill.lazy import lazy_exports
 
-_EXPORTS = {
-    "retarget": "retargeting",
-    "skill_from": "skill_layout",
-    "apply_skill": "skill_layout",
-    "demonstrated_layout": "skill_layout",
-    "robot_reconstruction": "retargeting",
-    "RobotPlan": "plan",
-    "PlanError": "plan",
-    "Placement": "model",
-    "make_scene": "model",
-    "rank_placements": "placement",
-    "check_reach": "placement",
-    "fit_sizes": "sizes",
-    "replay": "replaying",
-    "Replay": "replaying",
-    "prefer_headless_gl": "video",
-    "record": "video",
-    "link_poses": "kinematics",
-    "link_shapes": "kinematics",
-    "RobotTrack": "track",
-    "robot_track": "track",
-    "LinkShape": "kinematics",
-}
-
-__all__ = sorted(_EXPORTS)
-__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
+__all__, __getattr__, __dir__ = lazy_exports(__name__, globals(), {
+    "retargeting": ("retarget", "robot_reconstruction"),
+    "skill_layout": ("skill_from", "apply_skill", "demonstrated_layout"),
+    "plan": ("RobotPlan", "PlanError"),
+    "model": ("Placement", "make_scene"),
+    "placement": ("rank_placements", "check_reach"),
+    "sizes": ("fit_sizes",),
+    "replaying": ("replay", "Replay"),
+    "video": ("prefer_headless_gl", "record"),
+    "kinematics": ("link_poses", "link_shapes", "LinkShape"),
+    "track": ("RobotTrack", "robot_track"),
+})

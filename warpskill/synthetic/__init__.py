@@ -10,6 +10,7 @@ engine, the contract and the data layer's box masks; never the optimiser.
 """
 
 from warpskill.synthetic.generator import INPUTS, SCENARIOS, check_scenarios, make_demonstration, real_scenarios
+from warpskill.synthetic.relations import RELATION_ACTIONS, relation_case
 from warpskill.synthetic.scripts import (
     GRASP_LEVEL,
     PICK_UP_ENDINGS,
@@ -24,6 +25,7 @@ __all__ = [
     "INPUTS",
     "NOISE_LEVELS",
     "PICK_UP_ENDINGS",
+    "RELATION_ACTIONS",
     "SCENARIOS",
     "SPOILERS",
     "TIP_DEPTH",
@@ -31,6 +33,7 @@ __all__ = [
     "check_scenarios",
     "make_demonstration",
     "real_scenarios",
+    "relation_case",
     "scripted_inputs",
     "scripted_scene",
 ]

@@ -11,16 +11,10 @@ Names load on first use.
 
 from warpskill.lazy import lazy_exports
 
-_EXPORTS = {
-    "save_pictures": "pictures",
-    "contact_sheet": "sheet",
-    "overlay_frames": "overlay",
-    "render_labels": "overlay",
-    "top_view_figure": "plots",
-    "trajectories_figure": "plots",
-    "view": "rerun_view",
-    "import_rerun": "rerun_view",
-}
-
-__all__ = sorted(_EXPORTS)
-__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
+__all__, __getattr__, __dir__ = lazy_exports(__name__, globals(), {
+    "pictures": ("save_pictures",),
+    "sheet": ("contact_sheet",),
+    "overlay": ("overlay_frames", "render_labels"),
+    "plots": ("top_view_figure", "trajectories_figure"),
+    "rerun_view": ("view", "import_rerun"),
+})
