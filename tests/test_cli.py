@@ -183,12 +183,20 @@ def truth_files(tmp_path_factory):
 def test_evaluate_prints_every_check_and_succeeds_on_the_truth(action_args, truth_files, capsys):
     assert main(["evaluate", str(truth_files / "truth.npz"), *action_args]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines == ["  ok   above_ground", "  ok   lifted", "  ok   started_on_ground", "pick_up: success"]
+    assert [line.split("  (")[0] for line in lines] == [
+        "  ok   above_ground", "  ok   lifted", "  ok   started_on_ground", "pick_up: success"]
+    assert all(float(line.split("(")[1].split()[0]) >= 0 for line in lines[:3])  # passed: room to the limit
+
+
+def test_evaluate_prints_a_failed_checks_negative_margin(truth_files, capsys):
+    assert main(["evaluate", str(truth_files / "dropped.npz"), "--action", "pick_up"]) == 3
+    lifted = next(line for line in capsys.readouterr().out.splitlines() if "lifted" in line)
+    assert lifted.startswith("  FAIL lifted") and float(lifted.split("(")[1].split()[0]) < 0
 
 
 def test_evaluate_returns_3_on_failure(truth_files, capsys):
     assert main(["evaluate", str(truth_files / "dropped.npz"), "--action", "pick_up"]) == 3
-    lines = capsys.readouterr().out.splitlines()
+    lines = [line.split("  (")[0] for line in capsys.readouterr().out.splitlines()]
     assert "  FAIL lifted" in lines and "  ok   above_ground" in lines
     assert lines[-1] == "pick_up: failure"
 

@@ -118,6 +118,8 @@ def _evaluate(args) -> int:
         raise ValueError("the reconstruction names no action: pass --action")
     result = evaluate(recon, action, mode=args.mode)
     for name, ok in result.checks.items():
-        print(f"  {'ok  ' if ok else 'FAIL'} {name}")
+        margin = result.margins.get(name)
+        room = "" if margin is None else f"  ({margin:+.3f} m to its limit)"
+        print(f"  {'ok  ' if ok else 'FAIL'} {name}{room}")
     print(f"{action}: {'success' if result.success else 'failure'}")
     return 0 if result.success else 3
