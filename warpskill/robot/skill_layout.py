@@ -251,7 +251,8 @@ def _object_path(skill: Skill, layout: Layout, size: np.ndarray, static_pos: np.
     The demonstrated motion from the new start, resting as deep as before (a resized
     object keeps its bottom's heights); a ``put_*`` path bends, with the progress along
     it, to end at the release relative to the static box, and settles from there as it did
-    relative to the box (next to, onto) or to the camera (behind, in front of); a carried object is lifted
+    relative to the box (next to, onto: kept over the top, :func:`_on_top_face`) or to the
+    camera (behind, in front of); a carried object is lifted
     over the static boxes in its way (:func:`_carry_lift`); an object put onto the box
     rests on its top from the release on, at most :data:`GRAZE` deep in it
     (:func:`_on_top_floor`).
@@ -271,7 +272,8 @@ def _object_path(skill: Skill, layout: Layout, size: np.ndarray, static_pos: np.
         target = _release_point(skill, pos[k], rot[k], size, static_pos[0], static_rot[0])
         pos += _progress(motion_pos, k_on, k)[:, None] * (target - pos[k])
         pos[k:] = pos[k] + (pos[k:] - pos[k]) @ _relation_turn(skill, static_rot[0]).T  # settling beside it
-        if skill.action == "put_onto":
+        if skill.action == "put_onto":  # it settles on the top, not off it
+            pos[k:] = _on_top_face(skill, pos[k:], static_pos[0], static_rot[0])
             floor = _on_top_floor(pos[k:], rot[k:], size, static_pos[0], static_rot[0], skill.static_size[0])
             pos[k:, 2] = np.maximum(pos[k:, 2], floor)
     if not _world_directed(skill.action):
@@ -286,10 +288,7 @@ def _release_point(skill: Skill, where: np.ndarray, rot: np.ndarray, size: np.nd
     height ``where[2]`` kept."""
     local = skill.static_rot[0].T @ skill.release_offset  # in the demonstrated box's frame
     if skill.action == "put_onto":  # on the box: the centre inside its top, ONTO_INSET from the edges
-        half = 0.5 * skill.static_size[0, :2]
-        limit = np.maximum(half - ONTO_INSET, 0.5 * half)
-        local[:2] = np.clip(local[:2], -limit, limit)
-        target = static_pos + static_rot @ local
+        target = _on_top_face(skill, static_pos + static_rot @ local, static_pos, static_rot)
     else:  # beside the box: the demonstrated gap out of the side, the offset along it clamped to it
         _, along_demo = _sides(skill.action, local, skill.static_rot[0])
         out, along = _sides(skill.action, local, static_rot)
@@ -299,6 +298,16 @@ def _release_point(skill: Skill, where: np.ndarray, rot: np.ndarray, size: np.nd
         target = static_pos + (reach + max(skill.release_gap, 0.0)) * out + lateral * along
     target[2] = where[2]
     return target
+
+
+def _on_top_face(skill: Skill, pos: np.ndarray, static_pos: np.ndarray, static_rot: np.ndarray) -> np.ndarray:
+    """(..., 3) object centres ``pos`` (..., 3) moved horizontally, in the static box's frame, to lie
+    over its top at least :data:`ONTO_INSET` inside the edges."""
+    half = 0.5 * skill.static_size[0, :2]
+    limit = np.maximum(half - ONTO_INSET, 0.5 * half)
+    local = (pos - static_pos) @ static_rot
+    local[..., :2] = np.clip(local[..., :2], -limit, limit)
+    return static_pos + local @ static_rot.T
 
 
 def _relation_turn(skill: Skill, static_rot: np.ndarray) -> np.ndarray:
