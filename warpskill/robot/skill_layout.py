@@ -472,12 +472,11 @@ def _check_relation(recon: Reconstruction) -> None:
         return
     failed = [name for name, ok in evaluate(recon, action).checks.items() if not ok]
     if failed:
-        x, y, _ = recon.object_pos[-1]
-        statics = "".join(f", static box {k} at ({p[0]:.2f}, {p[1]:.2f}) m"
-                          for k, p in enumerate(recon.static_pos[:1]))
+        where = "object ending at ({:.2f}, {:.2f}) m".format(*recon.object_pos[-1, :2])
+        if recon.num_static:
+            where += ", static box 0 at ({:.2f}, {:.2f}) m".format(*recon.static_pos[0, :2])
         raise LayoutError(f"layout refused: the {action.replace('_', ' ')} relation cannot be met: the laid-out "
-                          f"scene fails {', '.join(failed)} (object ending at ({x:.2f}, {y:.2f}) m{statics})",
-                          reason="relation not met")
+                          f"scene fails {', '.join(failed)} ({where})", reason="relation not met")
 
 
 def skill_from(recon: Reconstruction) -> Skill:
