@@ -46,8 +46,8 @@ def synthetic_reconstruction(action: str, seed: int, source: str, options: Optim
                              noise: str = "moderate", folder: Path | None = None):
     """The reconstruction of synthetic ``action`` / ``seed`` from ``source``.
 
-    ``truth``: the noise-free ground truth; ``optimised``: :func:`warpskill.optimize` with
-    ``options`` (its seed replaced by ``seed``) on the demonstration with ``noise``, cached
+    ``truth``: the noise-free ground truth, with the demonstration's object noun; ``optimised``:
+    :func:`warpskill.optimize` with ``options`` (its seed replaced by ``seed``) on the demonstration with ``noise``, cached
     as ``folder/reconstruction.npz`` when ``folder`` is given (a rerun loads it; a corrupt
     one is redone).
     """
@@ -55,7 +55,8 @@ def synthetic_reconstruction(action: str, seed: int, source: str, options: Optim
     if source not in SOURCES:
         raise ValueError(f"unknown source {source!r}; valid sources: {', '.join(SOURCES)}")
     if source == "truth":
-        return Reconstruction(**make_demonstration(action, seed=seed, noise="none").truth)
+        demo = make_demonstration(action, seed=seed, noise="none")
+        return Reconstruction(**demo.truth, object_noun=demo.object_noun or "")
     keeper = ResultsFolder(folder) if folder is not None else None
     cached = keeper.finished_reconstruction() if keeper is not None else None
     if cached is not None:
