@@ -65,7 +65,7 @@ def test_a_cup_is_held_by_its_rim_and_lifted_onto_the_book_in_mujoco():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [1, 3, 4])  # a card, a key, a pen: 1 cm tall
+@pytest.mark.parametrize("seed", [1, 3, 20])  # a card, a key, a phone: 1 cm tall
 def test_a_flat_object_is_picked_up_in_mujoco(seed):
     recon = relations_truth("pick_up", seed)
     assert recon.object_size.min() < 0.011

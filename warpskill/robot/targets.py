@@ -16,7 +16,8 @@ The plan, sampled every :data:`~warpskill.robot.planner.DT`:
    (:data:`PREGRASP` back along the approach), then a straight move onto the grasp pose
    at the onset, never faster than :data:`APPROACH_TIME` (without ``follow_hand``, the
    join pose is the pre-grasp itself);
-3. grasp: the gripper closes (``CLOSE_TIME`` s, the arm waits);
+3. grasp: the gripper closes (``CLOSE_TIME`` s, the arm waits; the fingers start
+   :data:`CLOSE_DELAY` after the arm arrives);
 4. hold: a carried object follows its reconstructed path upright, in its orientation at
    the grasp, at least :data:`CLEARANCE` above its support; a push follows the object's
    horizontal displacement at the push height;
@@ -69,6 +70,10 @@ ONTO_CLEARANCE = 0.005
 """[m] a put onto lets go with the carried object's bottom this far above the static box's top:
 released lower, the fingers would press it into the top; higher, it drops and may bounce off."""
 HOLD_KEYS = 3  # held-object samples among the key targets
+CLOSE_DELAY = 0.2
+"""[s] the gripper starts closing this long after the arm reaches the grasp pose (within
+``CLOSE_TIME``): the position-controlled arm lags the plan by about 6 mm there, and fingers
+closed at once pinched above a 1 cm card and came to rest on its top."""
 
 
 @dataclasses.dataclass
@@ -282,7 +287,7 @@ def plan_targets(recon: Reconstruction, scene: Scene, pose: GraspPose, k_on: int
     for i in range(n_close):
         T = G.copy()
         T[:3, 3] = G_down[:3, 3] + min_jerk(np.array((i + 1) / n_close)) * (G[:3, 3] - G_down[:3, 3])
-        out.add(t_on, T, opening * max(0.0, 1.0 - (i * DT) / close_ramp))
+        out.add(t_on, T, opening * float(np.clip(1.0 - (i * DT - CLOSE_DELAY) / close_ramp, 0.0, 1.0)))
 
     def hold_target(tau: float) -> np.ndarray:
         return hold_pose(recon, scene, pose, k_on, k_off, tau, release_shift)
