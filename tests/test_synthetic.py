@@ -118,5 +118,19 @@ def test_the_benchmark_measures_errors_and_scale_against_the_truth():
         fields[key] = 0.8 * np.asarray(demo.truth[key])
     shrunk = camera_frame_errors(Reconstruction(**fields), demo.truth)
     assert shrunk["scale"] == pytest.approx(0.8)
+    assert shrunk["static_size"] == pytest.approx(0.2 * np.abs(demo.truth["static_size"][0]).mean())
+    # Put onto: the object is let go on the static's top, 0.8 times as high in the scaled scene.
+    assert shrunk["release_height"] == pytest.approx(0.2 * demo.truth["static_size"][0, 2], rel=0.05)
     table = error_table({"full method": [exact, shrunk]})
     assert "scale" in table and "0.90" in table
+
+
+def test_the_action_table_reports_success_and_errors_per_action():
+    from warpskill.bench.outcomes import CaseOutcome, action_error_table
+
+    cases = [CaseOutcome("put_onto_0", "put_onto", True, [], {"centre": 0.02, "static_size": 0.01, "release_height": 0.0}),
+             CaseOutcome("put_onto_1", "put_onto", False, ["on_static_top"], {"centre": 0.04, "release_height": 0.1}),
+             CaseOutcome("pick_up_0", "pick_up", True, [], {"centre": 0.05})]
+    lines = action_error_table(cases).splitlines()
+    assert lines[2] == "| put_onto | 1/2 | 3.0 | 1.0 | 5.0 |"
+    assert lines[3] == "| pick_up | 1/1 | 5.0 | - | - |"

@@ -30,13 +30,15 @@ from warpskill.contract.evaluation import Evaluation, closest_call, evaluate
 from warpskill.contract.reconstruction import Reconstruction
 from warpskill.contract.results_folder import ResultsFolder
 from warpskill.engine.projection import world_to_camera
+from warpskill.geometry import cuboid_corners, release_frame
 
 NOTES = "notes.txt"
 """A case's file of what was done about messy annotations, one note a line."""
 OUTCOMES_JSON = "outcomes.json"
 OUTCOMES_CSV = "outcomes.csv"
-ERROR_KEYS = ("centre", "hand", "size", "camera_height", "elevation", "scale", "noun_ratio", "hand_ratio")
-"""Key errors kept per case (see :func:`camera_frame_errors`; on real videos ``noun_ratio``: the
+ERROR_KEYS = ("centre", "hand", "size", "static_size", "release_height", "camera_height", "elevation", "scale",
+              "noun_ratio", "hand_ratio")
+"""Key errors kept per case, where defined (see :func:`camera_frame_errors`; on real videos ``noun_ratio``: the
 object's largest edge over its noun's typical one, ``hand_ratio``: over the hand's measure of it,
 :func:`~warpskill.bench.rulers.hand_ruler_ratio`)."""
 
@@ -139,7 +141,7 @@ class CaseOutcome:
 def judged(case: str, evaluation: Evaluation, errors: dict[str, float] | None = None) -> CaseOutcome:
     """The outcome of a case from its evaluation (and its ground-truth errors, if any)."""
     failed = tuple(name for name, ok in evaluation.checks.items() if not ok)
-    kept = {key: float(errors[key]) for key in ERROR_KEYS if errors and key in errors}
+    kept = {key: float(errors[key]) for key in ERROR_KEYS if errors and key in errors and np.isfinite(errors[key])}
     return CaseOutcome(case, evaluation.action, evaluation.success, failed, kept, margins=dict(evaluation.margins))
 
 
@@ -275,7 +277,11 @@ def camera_frame_errors(recon, truth: dict[str, np.ndarray]) -> dict[str, float]
     cuboid's axes may be permuted); ``camera_height`` [m] and ``elevation`` [rad] (absolute
     errors); ``scale``: the scene's size relative to the truth, the median over frames of
     the object centre's distance from the camera, reconstructed over true (scaling the
-    scene about the camera multiplies exactly this distance).
+    scene about the camera multiplies exactly this distance); ``static_size`` (the first
+    static's sorted edges, mean absolute error [m]; NaN without a static) and
+    ``release_height`` (the height [m] of the object's lowest corner above the table where
+    each lets it go, :func:`~warpskill.geometry.release_frame`: on a static's top, on the
+    table, or in the air; absolute error).
     """
 
     def in_camera(pos, height, elevation):
@@ -288,6 +294,8 @@ def camera_frame_errors(recon, truth: dict[str, np.ndarray]) -> dict[str, float]
     hand_est = in_camera(recon.hand_pos, recon.camera_height, recon.camera_elevation)
     hand_ref = in_camera(truth["hand_pos"], truth["camera_height"], truth["camera_elevation"])
     size_error = np.abs(np.sort(recon.object_size) - np.sort(truth["object_size"])).mean()
+    static_error = (float(np.abs(np.sort(recon.static_size[0]) - np.sort(truth["static_size"][0])).mean())
+                    if len(recon.static_size) and len(truth["static_size"]) else float("nan"))
     return {
         "centre": float(np.median(np.linalg.norm(est - ref, axis=1))),
         "hand": float(np.median(np.linalg.norm(hand_est - hand_ref, axis=1))),
@@ -295,7 +303,19 @@ def camera_frame_errors(recon, truth: dict[str, np.ndarray]) -> dict[str, float]
         "camera_height": float(abs(float(recon.camera_height) - float(truth["camera_height"]))),
         "elevation": float(abs(float(recon.camera_elevation) - float(truth["camera_elevation"]))),
         "scale": float(np.median(np.linalg.norm(est, axis=1) / np.linalg.norm(ref, axis=1))),
+        "static_size": static_error,
+        "release_height": abs(_release_height(recon) - _release_height(truth)),
     }
+
+
+def _release_height(scene) -> float:
+    """[m] the height of the object's lowest corner where the hand lets it go (a reconstruction
+    or a ground-truth dict)."""
+    get = (lambda key: scene[key]) if isinstance(scene, dict) else (lambda key: getattr(scene, key))  # noqa: E731
+    k = release_frame(np.asarray(get("grasped")))
+    corners = cuboid_corners(np.asarray(get("object_pos"))[k], np.asarray(get("object_rot"))[k],
+                             np.asarray(get("object_size")))
+    return float(corners[..., 2].min())
 
 
 def flips(baseline: dict[str, CaseOutcome], current: dict[str, CaseOutcome],
@@ -381,6 +401,20 @@ def median_errors(outcomes: list[CaseOutcome]) -> dict[str, float]:
     """Median of each key error over the cases that have it."""
     return {key: float(np.median([o.errors[key] for o in outcomes if key in o.errors]))
             for key in ERROR_KEYS if any(key in o.errors for o in outcomes)}
+
+
+def action_error_table(outcomes: Sequence[CaseOutcome]) -> str:
+    """Per action: the cases that succeed, and the median object-centre, static-size and
+    release-height errors [cm] over its cases that have them (Markdown; "-": none has it)."""
+    lines = ["| action | succeed | centre cm | static size cm | release height cm |", "|---|---|---|---|---|"]
+    for action in dict.fromkeys(o.action for o in outcomes):
+        cases = [o for o in outcomes if o.action == action]
+        cells = [action, f"{sum(bool(o.success) for o in cases)}/{len(cases)}"]
+        for key in ("centre", "static_size", "release_height"):
+            values = [o.errors[key] for o in cases if key in o.errors]
+            cells.append(f"{100 * np.median(values):.1f}" if values else "-")
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def _checks(outcome: CaseOutcome) -> str:

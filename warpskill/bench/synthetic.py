@@ -14,7 +14,7 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from warpskill.bench.outcomes import CaseOutcome, camera_frame_errors, judged, verdict
+from warpskill.bench.outcomes import CaseOutcome, action_error_table, camera_frame_errors, judged, verdict
 from warpskill.bench.report import record_outcomes, show
 from warpskill.contract.actions import ACTIONS
 from warpskill.contract.demonstration import Demonstration
@@ -42,18 +42,19 @@ def spread_noun(size: np.ndarray, rng: np.random.Generator, spread: float = NOUN
 
 
 def error_table(errors: dict[str, list[dict[str, float]]]) -> str:
-    """Median and max over demonstrations of :func:`camera_frame_errors`, one row per method (Markdown)."""
-    header = ["method", "centre cm", "hand tip cm", "size cm", "cam height cm", "elevation deg", "scale",
-              "|scale-1|"]
+    """Median and max over demonstrations of :func:`camera_frame_errors`, one row per method (Markdown;
+    a column without a value, such as a static's size where no scene has one, shows "-")."""
+    header = ["method", "centre cm", "hand tip cm", "size cm", "static size cm", "release height cm",
+              "cam height cm", "elevation deg", "scale", "|scale-1|"]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for row, errs in errors.items():
         if not errs:
             continue
         col = lambda key, f=1.0: np.array([e[key] for e in errs]) * f  # noqa: E731
         cells = [row]
-        for values in (col("centre", 100), col("hand", 100), col("size", 100), col("camera_height", 100),
-                       col("elevation", 180 / np.pi)):
-            cells.append(f"{np.median(values):.1f} / {values.max():.1f}")
+        for values in (col("centre", 100), col("hand", 100), col("size", 100), col("static_size", 100),
+                       col("release_height", 100), col("camera_height", 100), col("elevation", 180 / np.pi)):
+            cells.append(f"{np.nanmedian(values):.1f} / {np.nanmax(values):.1f}" if np.isfinite(values).any() else "-")
         scale = col("scale")
         cells.append(f"{np.median(scale):.2f} ({scale.min():.2f}-{scale.max():.2f})")
         off = np.abs(scale - 1)
@@ -137,7 +138,7 @@ def bench_synthetic(
                 logger.info("%-22s seed %d: init %s full %s  %6.1f s", action, seed,
                             verdict(rows["initialisation only"][-1][1]), verdict(rows["full method"][-1][1]), seconds[-1])
 
-    show("", success_table(rows), "", error_table(errors),
+    show("", success_table(rows), "", error_table(errors), "", action_error_table(outcomes),
          f"time per demonstration (both stages, {options.device or 'cpu'}): median {statistics.median(seconds):.1f} s, "
          f"max {max(seconds):.1f} s")
     record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
