@@ -12,7 +12,7 @@ from warpskill.nouns.typical import SIZES
 from warpskill.optimizer import OptimizeOptions, optimize
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.hypotheses import read_evidence
-from warpskill.optimizer.scene import MIN_OBJECT_SIZE, noun_size_prior
+from warpskill.optimizer.scene import MIN_OBJECT_SIZE, MIN_STATIC_SIZE, noun_size_prior, static_noun_size_prior
 from warpskill.optimizer.weights import LossWeights
 from warpskill.synthetic import make_demonstration
 
@@ -37,6 +37,33 @@ def test_the_noun_prior_sums_the_squared_logs_of_the_sorted_edges_over_the_typic
     assert prior([0.07, 0.12, 0.07]) > prior([0.03, 0.12, 0.07])  # a thick fork costs more than a thin one
     size = torch.tensor([0.06, 0.11, 0.09], dtype=torch.float64, requires_grad=True)
     assert torch.autograd.gradcheck(lambda s: noun_size_prior(_scene(s), weights, typical), (size,))
+
+
+def test_the_static_noun_prior_sums_over_the_named_statics_and_its_gradient_checks():
+    weights = LossWeights(static_noun_size=1.0)
+    book, box = (0.025, 0.15, 0.23), (0.1, 0.1, 0.15)
+
+    def prior(sizes, edges):
+        scene = type("S", (), {"static_size": torch.tensor(sizes, dtype=torch.float64)})()
+        return float(static_noun_size_prior(scene, weights, edges))
+
+    assert prior([[0.23, 0.15, 0.025], [0.3, 0.3, 0.3]], (book, None)) == pytest.approx(0.0, abs=1e-12)
+    assert prior([[0.23, 0.15, 0.05], [0.1, 0.15, 0.1]], (book, box)) == pytest.approx(np.log(2.0) ** 2)
+    sizes = torch.tensor([[0.2, 0.1, 0.04], [0.12, 0.08, 0.2]], dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(
+        lambda s: static_noun_size_prior(type("S", (), {"static_size": s})(), weights, (book, box)), (sizes,))
+
+
+def test_the_evidence_carries_the_statics_typical_edges_from_their_nouns_where_the_prior_is_on():
+    config, cpu = OptimizeConfig(weights=LossWeights(static_noun_size=2.0)), torch.device("cpu")
+    demo = make_demonstration("put_onto", seed=0, input="boxes", scenarios="relations")
+    edges = read_evidence(demo, {}, config, cpu, demo.object_noun).static_typical_edges
+    typical = sorted(max(edge, MIN_STATIC_SIZE) for edge in SIZES[demo.static_nouns[0]].edges)
+    assert len(edges) == 1 and edges[0] == pytest.approx(typical)
+    assert read_evidence(demo, {"object_height": 0.1}, config, cpu, demo.object_noun).static_typical_edges == ()
+    unnamed = make_demonstration("put_onto", seed=0, input="boxes", **SMALL)
+    assert read_evidence(unnamed, {}, config, cpu, None).static_typical_edges == ()
+    assert read_evidence(demo, {}, OptimizeConfig(), cpu, demo.object_noun).static_typical_edges == ()  # off by default
 
 
 def test_the_noun_prior_is_on_only_for_an_object_with_a_noun_and_no_known_length():

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_something_else import _messy, _write
+from test_something_else import _label, _messy, _write
 
 from warpskill.contract.demonstration import Demonstration, DemonstrationError
 from warpskill.data.boxes.something_else import (
@@ -110,3 +110,24 @@ def test_the_reader_gives_the_demonstration_its_object_noun_and_the_file_keeps_i
     assert Demonstration.load(tmp_path / "old.npz").object_noun is None
     with pytest.raises(DemonstrationError, match="object_noun"):
         Demonstration.from_arrays(demo.hand_mask, demo.object_mask, demo.contact, demo.fps, object_noun=3)
+
+
+def test_the_reader_names_each_static_and_the_file_keeps_it(tmp_path):
+    frames = _messy()
+    for k in (1, 2, 3):
+        frames[k].append(_label("object 1", (200, 100, 260, 140), "book"))
+    video = read_something_else(*_write(tmp_path, frames))["7"]
+    demo, _ = something_else_demonstration(video)
+    assert demo.static_nouns == ("box",)  # the video label's second placeholder, "box"
+    for entry in video.frames:
+        entry.pop("gt_placeholders")
+    assert something_else_demonstration(video)[0].static_nouns == ("book",)  # else its boxes' category
+    demo.save(tmp_path / "d.npz")
+    assert Demonstration.load(tmp_path / "d.npz").static_nouns == ("box",)
+    unnamed = Demonstration.from_arrays(demo.hand_mask, demo.object_mask, demo.contact, demo.fps,
+                                        static_mask=demo.static_mask)
+    unnamed.save(tmp_path / "unnamed.npz")
+    assert Demonstration.load(tmp_path / "unnamed.npz").static_nouns == ()
+    with pytest.raises(DemonstrationError, match="static_nouns: 2 noun"):
+        Demonstration.from_arrays(demo.hand_mask, demo.object_mask, demo.contact, demo.fps,
+                                  static_mask=demo.static_mask, static_nouns=("book", "tray"))

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import cv2
 import numpy as np
@@ -21,7 +21,7 @@ from warpskill.contract.reconstruction import ReconstructionError, check_fields
 
 TRUTH_PREFIX = "truth_"
 REQUIRED_KEYS = ("hand_mask", "object_mask", "contact", "fps")
-OPTIONAL_KEYS = ("static_mask", "camera_K", "action", "object_noun")
+OPTIONAL_KEYS = ("static_mask", "camera_K", "action", "object_noun", "static_nouns")
 
 
 class DemonstrationError(ValueError):
@@ -48,6 +48,8 @@ class Demonstration:
             ``truth_`` prefix) -> array; empty if none.
         object_noun: what the manipulated object is, as annotated (e.g. ``"coffee mug"``;
             :func:`warpskill.nouns.typical.typical_size` gives its typical size), or None.
+        static_nouns: what each static object is, (K,) strings or None per static, as
+            annotated (e.g. ``"book"``); empty when no static is named.
 
     Raises:
         DemonstrationError: naming the key and the problem, for any input that breaks
@@ -64,6 +66,7 @@ class Demonstration:
     action: str | None = None
     truth: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
     object_noun: str | None = None
+    static_nouns: tuple[str | None, ...] = ()
 
     def __post_init__(self) -> None:
         self.hand_mask = _binary("hand_mask", self.hand_mask, ndim=3)
@@ -88,6 +91,7 @@ class Demonstration:
                 raise DemonstrationError(f"action: {exc}") from None
         if self.object_noun is not None and not isinstance(self.object_noun, str):
             raise DemonstrationError(f"object_noun: expected a string, got {type(self.object_noun).__name__}")
+        self.static_nouns = _static_nouns(self.static_nouns, self.num_static)
         try:
             self.truth = check_fields(self.truth, dims={"N": n, "K": self.num_static}, key_prefix=TRUTH_PREFIX)
         except ReconstructionError as exc:
@@ -106,6 +110,7 @@ class Demonstration:
         action: str | None = None,
         truth: dict[str, np.ndarray] | None = None,
         object_noun: str | None = None,
+        static_nouns: Sequence[str | None] = (),
     ) -> "Demonstration":
         """Build a demonstration from the arrays of a demonstration file.
 
@@ -119,6 +124,7 @@ class Demonstration:
             action: action name, or None if unknown.
             truth: ground-truth reconstruction fields, keyed without the ``truth_`` prefix.
             object_noun: the manipulated object's noun, or None if unknown.
+            static_nouns: each static object's noun (None: unknown), K of them, or none.
 
         Raises:
             DemonstrationError: naming the key and the problem.
@@ -133,7 +139,8 @@ class Demonstration:
             intrinsics = Intrinsics.default(h, w)
         else:
             intrinsics = Intrinsics(_finite_floats("camera_K", camera_K), (h, w))
-        return cls(hand_mask, object_mask, static_mask, contact, fps, intrinsics, action, dict(truth or {}), object_noun)
+        return cls(hand_mask, object_mask, static_mask, contact, fps, intrinsics, action, dict(truth or {}), object_noun,
+                   tuple(static_nouns))
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Demonstration":
@@ -177,6 +184,7 @@ class Demonstration:
             action=_optional_string("action", arrays.get("action")),
             truth=truth,
             object_noun=_optional_string("object_noun", arrays.get("object_noun")),
+            static_nouns=_file_static_nouns(arrays.get("static_nouns")),
         )
 
     def save(self, path: str | os.PathLike) -> None:
@@ -184,6 +192,7 @@ class Demonstration:
 
         Masks and contact are written as uint8 0/1, ``static_mask`` as (K, N, H, W) and
         only when K > 0, ``camera_K`` always, ``action`` and ``object_noun`` when known,
+        ``static_nouns`` ((K,) str, "" for an unnamed static) when any static is named,
         truth as ``truth_*``.
         """
         arrays = {
@@ -199,6 +208,8 @@ class Demonstration:
             arrays["action"] = np.array(self.action)
         if self.object_noun is not None:
             arrays["object_noun"] = np.array(self.object_noun)
+        if any(self.static_nouns):
+            arrays["static_nouns"] = np.array([noun or "" for noun in self.static_nouns])
         arrays.update({TRUTH_PREFIX + name: value for name, value in self.truth.items()})
         save_npz_atomic(path, arrays)
 
@@ -328,6 +339,25 @@ def _optional_string(key: str, value: np.ndarray | None) -> str | None:
     if value.dtype.kind != "U" or value.ndim != 0:
         raise DemonstrationError(f"{key}: expected a string (0-d str array), got {value.dtype} of shape {value.shape}")
     return str(value)
+
+
+def _static_nouns(nouns: Sequence[str | None], num_static: int) -> tuple[str | None, ...]:
+    """``nouns`` checked as K strings or None, one per static ("" read as None); () stays ()."""
+    nouns = tuple(nouns)
+    if nouns and len(nouns) != num_static:
+        raise DemonstrationError(f"static_nouns: {len(nouns)} noun(s) for {num_static} static object(s)")
+    if any(noun is not None and not isinstance(noun, str) for noun in nouns):
+        raise DemonstrationError(f"static_nouns: expected strings or None, got {nouns!r}")
+    return tuple(noun or None for noun in nouns) if any(nouns) else ()
+
+
+def _file_static_nouns(value: np.ndarray | None) -> tuple[str, ...]:
+    """A file's (K,) str array of static nouns as a tuple ("" for an unnamed static); None: ()."""
+    if value is None:
+        return ()
+    if value.dtype.kind != "U" or value.ndim != 1:
+        raise DemonstrationError(f"static_nouns: expected (K,) strings, got {value.dtype} of shape {value.shape}")
+    return tuple(str(noun) for noun in value)
 
 
 def _area_resize(masks: np.ndarray, height: int, width: int) -> np.ndarray:

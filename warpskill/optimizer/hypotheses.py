@@ -35,7 +35,13 @@ from warpskill.optimizer.inputs import (
     within_static_across,
     working_inputs,
 )
-from warpskill.optimizer.scene import MIN_OBJECT_SIZE, SceneTrajectories, ends_behind_static, final_bottom
+from warpskill.optimizer.scene import (
+    MIN_OBJECT_SIZE,
+    MIN_STATIC_SIZE,
+    SceneTrajectories,
+    ends_behind_static,
+    final_bottom,
+)
 from warpskill.optimizer.stage_a import InitialParameters
 from warpskill.optimizer.stage_b import PhysicalRollout, PhysicalScene
 from warpskill.optimizer.weights import LossWeights
@@ -72,6 +78,8 @@ class Evidence:
             where its size prior applies (``weights.object_noun_size`` on; a long object's
             first guess lies in its proportions, :func:`~warpskill.optimizer.guess.initial_guess`);
             None elsewhere.
+        static_typical_shapes: the same per static object, from ``demo.static_nouns``, where
+            its prior applies (``weights.static_noun_size`` on); empty elsewhere.
     """
 
     demo: Demonstration
@@ -85,6 +93,14 @@ class Evidence:
     covering: np.ndarray
     enclosed: np.ndarray
     typical_shape: tuple[float, float, float] | None = None
+    static_typical_shapes: tuple[tuple[float, float, float] | None, ...] = ()
+
+    @property
+    def static_typical_edges(self) -> tuple[tuple[float, float, float] | None, ...]:
+        """[m] per static, its noun's typical edges, ascending, each at least
+        :data:`~warpskill.optimizer.scene.MIN_STATIC_SIZE`; None where no prior applies."""
+        return tuple(None if shape is None else tuple(max(edge, MIN_STATIC_SIZE) for edge in sorted(shape))
+                     for shape in self.static_typical_shapes)
 
     @property
     def typical_edges(self) -> tuple[float, float, float] | None:
@@ -113,11 +129,16 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
     ``noun`` (:func:`~warpskill.nouns.typical.typical_size`; None: no noun)."""
     inputs = working_inputs(demo, config, device)
     typical = typical_size(noun)
+    statics = [typical_size(noun) for noun in demo.static_nouns]
     weights = config.weights.for_scene(known_length=bool(known), object_from_boxes=bool(inputs.targets.boxed[1]),
-                                       noun_size_known=typical is not None)
+                                       noun_size_known=typical is not None,
+                                       static_noun_known=any(size is not None for size in statics))
     typical_shape = None
     if typical is not None and weights.object_noun_size > 0:
         typical_shape = (typical.height, typical.width, typical.depth)
+    static_shapes = ()
+    if weights.static_noun_size > 0:
+        static_shapes = tuple(None if size is None else (size.height, size.width, size.depth) for size in statics)
     held = held_after_contact(inputs.masks.cpu().numpy(), inputs.contact_signal)
     rest = cut = covering = enclosed = np.zeros(demo.num_frames, dtype=bool)
     if demo.num_static:
@@ -126,7 +147,7 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
         covering = covers_static_top(full, inputs.contact_signal)
         enclosed = within_static_across(full, inputs.contact_signal)
     return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut), covering, enclosed,
-                    typical_shape)
+                    typical_shape, static_shapes)
 
 
 @dataclass

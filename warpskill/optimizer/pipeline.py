@@ -222,7 +222,8 @@ def _stage_a_objective(candidates: Sequence[Candidate], evidence: Sequence[Evide
                                [e.inputs.targets for e in seen])
         return [
             initial_objective(scene, masks, e.inputs.targets, e.inputs.contact, e.demo.fps, e.weights, e.uncertain,
-                              candidates[j].support, e.behind_prior(candidates[j].support), e.typical_edges)
+                              candidates[j].support, e.behind_prior(candidates[j].support), e.typical_edges,
+                              e.static_typical_edges)
             for j, scene, masks, e in zip(live, scenes, rendered, seen)
         ]
 
@@ -285,7 +286,8 @@ def _stage_b_objective(hypotheses: Sequence[PhysicsHypothesis], evidence: Sequen
         for b, result, masks in zip(live, results, rendered):
             h, e = hypotheses[b], evidence[hypotheses[b].demo]
             terms.append(physical_objective(result, masks, e.inputs.targets, h.contact, e.inputs.object_visible,
-                                            e.weights, h.support, e.behind_prior(h.support), e.typical_edges))
+                                            e.weights, h.support, e.behind_prior(h.support), e.typical_edges,
+                                            e.static_typical_edges))
         return terms
 
     return objective
@@ -328,6 +330,7 @@ def _reconstruction(
         camera_height=n(scene.camera_height),
         image_size=np.asarray(demo.image_size, dtype=np.int64),
         action=demo.action or "",
+        object_noun=options.object_noun or demo.object_noun or "",
         loss=np.float64(loss),
         options=options.to_json(),
     )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import torch
@@ -160,16 +161,29 @@ def noun_size_prior(scene: SceneTrajectories, weights: LossWeights,
     return weights.object_noun_size * torch.log(edges / typical).square().sum()
 
 
+def static_noun_size_prior(scene: SceneTrajectories, weights: LossWeights,
+                           static_edges: Sequence[tuple[float, float, float] | None]) -> torch.Tensor:
+    """:func:`noun_size_prior` for the static objects: ``sum_k sum_i log(edge_ki / typical_ki)^2``
+    over the statics k whose ``static_edges`` [m] (their nouns' typical edges, ascending) are
+    given, weighted by ``weights.static_noun_size``. A box shows neither a static's depth nor,
+    where the frame cuts it, its hidden extent; its noun tells both (a book is flat, a tray wide)."""
+    terms = [torch.log(torch.sort(scene.static_size[k]).values / scene.static_size.new_tensor(edges)).square().sum()
+             for k, edges in enumerate(static_edges) if edges is not None]
+    return weights.static_noun_size * torch.stack(terms).sum()
+
+
 def scene_priors(
     scene: SceneTrajectories, weights: LossWeights, supported: torch.Tensor | None = None,
     behind: torch.Tensor | None = None, *, whole_object_behind: bool = False,
     typical_edges: tuple[float, float, float] | None = None,
+    static_edges: Sequence[tuple[float, float, float] | None] = (),
 ) -> dict[str, torch.Tensor]:
     """The terms both stages add on the scene itself: the camera-height and footprint priors, the
     static boxes held out of the object and, where given, the placements "on the static" (``supported``,
     (N,)) and "behind the static" (``behind``, (N,); with ``whole_object_behind``, the
     object's front rather than its centre: see :func:`in_front_of_back_penalty`) and the size
-    prior of the object's noun (``typical_edges`` [m]: see :func:`noun_size_prior`)."""
+    priors of the object's noun (``typical_edges`` [m]: see :func:`noun_size_prior`) and of the
+    statics' (``static_edges``: see :func:`static_noun_size_prior`)."""
     terms = {
         "camera height": camera_height_prior(scene, weights),
         "object footprint": footprint_prior(scene, weights),
@@ -177,6 +191,8 @@ def scene_priors(
     }
     if typical_edges is not None:
         terms["object noun size"] = noun_size_prior(scene, weights, typical_edges)
+    if any(edges is not None for edges in static_edges) and weights.static_noun_size > 0:
+        terms["static noun size"] = static_noun_size_prior(scene, weights, static_edges)
     if supported is not None:
         terms["on the static"] = off_static_penalty(scene, supported, weights)
     if behind is not None:

@@ -9,6 +9,8 @@ trajectories for the physics stage (:mod:`warpskill.optimizer.stage_b`).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import torch
 
 from warpskill.engine.distances import (
@@ -104,6 +106,7 @@ def initial_objective(
     supported: torch.Tensor | None = None,
     behind: torch.Tensor | None = None,
     typical_edges: tuple[float, float, float] | None = None,
+    static_edges: Sequence[tuple[float, float, float] | None] = (),
 ) -> dict[str, torch.Tensor]:
     """Stage (a) loss terms: perceptual, contact distance, smoothness and resting priors.
 
@@ -124,6 +127,7 @@ def initial_objective(
             behind the box's back.
         typical_edges: [m] the edges, ascending, of the object's noun's typical size, where its
             prior applies (:func:`~warpskill.optimizer.scene.noun_size_prior`); None: no such prior.
+        static_edges: the same per static object (None where none applies; empty: none at all).
     """
     tip_distance = box_signed_distance(scene.hand_pos, scene.object_pos, scene.object_rot, scene.object_size)
     c = contact.to(tip_distance.dtype)
@@ -156,4 +160,5 @@ def initial_objective(
         + weights.penetration * (free * (low - support).square()).mean(),
         # ... and nothing goes through the ground.
         "penetration": weights.penetration * below,
-    } | scene_priors(scene, weights, supported, behind, typical_edges=typical_edges)
+    } | scene_priors(scene, weights, supported, behind, typical_edges=typical_edges,
+                   static_edges=static_edges)

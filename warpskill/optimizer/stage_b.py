@@ -11,6 +11,7 @@ to be at rest before and after the video.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -204,6 +205,7 @@ def physical_objective(
     supported: torch.Tensor | None = None,
     behind: torch.Tensor | None = None,
     typical_edges: tuple[float, float, float] | None = None,
+    static_edges: Sequence[tuple[float, float, float] | None] = (),
 ) -> dict[str, torch.Tensor]:
     """Stage (b) loss terms: perceptual, velocity regularisation, contact, stability, and the
     placement "on the static" where it is the hypothesis.
@@ -222,6 +224,7 @@ def physical_objective(
             the object is asked to stand behind the box's back; None: no such frames.
         typical_edges: [m] the edges, ascending, of the object's noun's typical size, where its
             prior applies (:func:`~warpskill.optimizer.scene.noun_size_prior`); None: no such prior.
+        static_edges: the same per static object (None where none applies; empty: none at all).
 
     Returns:
         Named weighted terms; the loss is their sum.
@@ -241,4 +244,5 @@ def physical_objective(
             + ((1 - contact) * (rollout.grasp + margin).clamp_min(0.0) ** 2).mean()
         ),
         "stability": weights.stability * result.still_velocity.mean(),
-    } | scene_priors(result.scene, weights, supported, behind, whole_object_behind=True, typical_edges=typical_edges)
+    } | scene_priors(result.scene, weights, supported, behind, whole_object_behind=True, typical_edges=typical_edges,
+                       static_edges=static_edges)

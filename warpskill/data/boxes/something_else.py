@@ -202,7 +202,7 @@ def something_else_demonstration(
     try:
         demo = Demonstration.from_arrays(
             masks["hand"], masks["object 0"], contact, FPS, static_mask=static_mask, action=video.action,
-            object_noun=object_noun(video),
+            object_noun=object_noun(video), static_nouns=[role_noun(video, role) for role in statics],
         )
     except DemonstrationError as exc:
         raise DemonstrationError(f"{where}: {exc}") from None
@@ -210,16 +210,22 @@ def something_else_demonstration(
 
 
 def object_noun(video: SomethingElseVideo) -> str | None:
-    """What the manipulated object is called: the first placeholder (the noun ``object 0``
-    stands for), else the ``category`` of an ``object 0`` box; None when neither is given."""
+    """What the manipulated object is called (:func:`role_noun` of ``object 0``)."""
+    return role_noun(video, "object 0")
+
+
+def role_noun(video: SomethingElseVideo, role: str) -> str | None:
+    """What the object labelled ``role`` (``object k``) is called: the placeholder for it (the
+    k-th noun of the video's label), else the ``category`` of its boxes; None when neither is given."""
+    k = object_index(role)
     for entry in video.frames:
         placeholders = entry.get("gt_placeholders") if isinstance(entry, dict) else None
-        if placeholders and isinstance(placeholders[0], str) and placeholders[0].strip():
-            return placeholders[0].strip()
+        if placeholders and len(placeholders) > k and isinstance(placeholders[k], str) and placeholders[k].strip():
+            return placeholders[k].strip()
     for entry in video.frames:
         for label in entry.get("labels", []) if isinstance(entry, dict) else []:
             category = label.get("category") if isinstance(label, dict) else None
-            if label.get("gt_annotation") == "object 0" and isinstance(category, str) and category.strip():
+            if label.get("gt_annotation") == role and isinstance(category, str) and category.strip():
                 return category.strip()
     return None
 
