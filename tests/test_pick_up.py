@@ -77,6 +77,35 @@ def test_an_object_that_moves_on_after_the_hand_box_ends_was_carried():
     assert not held_after_contact(jitter, CONTACT).any()
 
 
+def _lift(k):
+    """An object box 3 rows high resting at rows 24-27, lifted 12 rows during the contact (frames 2-11)."""
+    rise = min(max(k - 2, 0), 8) * 1.5
+    return (int(24 - rise), int(27 - rise), 15, 25)
+
+
+def test_an_object_lifted_and_left_hanging_where_the_hand_box_ends_is_in_doubt():
+    # The hand's boxes stop with the signal; the object stays where it was lifted: a released
+    # object would have fallen, so the physics decides.
+    hanging = _masks(lambda k: (0, 14, 18, 22) if k < 12 else None, _lift)
+    assert held_after_contact(hanging, CONTACT).tolist() == [False] * 12 + [True] * 8
+    # Lifted, then set down again in the contact's last third: a put, not a hold.
+    set_down = _masks(lambda k: (0, 14, 18, 22) if k < 12 else None,
+                      lambda k: _lift(k) if k < 9 else (20, 23, 15, 25))
+    assert not held_after_contact(set_down, CONTACT).any()
+    # Raised by less than its own height (a push away from the camera): no lift.
+    pushed = _masks(lambda k: (0, 14, 18, 22) if k < 12 else None,
+                    lambda k: (24 - min(k, 2), 30 - min(k, 2), 15, 25))
+    assert not held_after_contact(pushed, CONTACT).any()
+
+
+def test_a_lift_beside_a_static_box_says_nothing_of_a_hold():
+    # The static may hide the object's bottom: its box's rise is no lift.
+    hanging = _masks(lambda k: (0, 14, 18, 22) if k < 12 else None, _lift)
+    static = np.zeros((N, 1, H, W), dtype=np.float32)
+    static[:, 0, 15:29, 26:38] = 1
+    assert not held_after_contact(np.concatenate([hanging, static], 1), CONTACT).any()
+
+
 def test_the_held_ending_starts_with_the_hand_carrying_the_object_where_the_hand_is_unseen():
     n = 6
     object_pos = torch.tensor([[0.0, 0.5, 0.05]] * 3 + [[0.0, 0.4, 0.15], [0.0, 0.3, 0.2], [0.0, 0.25, 0.2]])

@@ -174,7 +174,9 @@ def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: in
       left the annotation, or the view, with the object in it), but the object must show
       it was carried there: in at least ``min_frames`` of them its box's bottom row moved
       since the contact's end (by more than ``moved_share`` of its larger side and
-      ``moved_px``), and objects do not move by themselves;
+      ``moved_px``), and objects do not move by themselves; or it hangs where the hand
+      lifted it, away from the static boxes (:func:`_lifted_off`): an object let go in the
+      air falls;
     - an object that leaves the view after it last touched the image border in contact with
       the hand (or with no hand box) left with the hand; one that vanishes in the middle of
       the image was not.
@@ -228,9 +230,42 @@ def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: in
                 return out
             carried |= not hand_seen[k - 1]  # it left the view: it moved
             gone = True
-    if carried or moves >= min_frames or not unseen_hand:
+    statics = [_boxes(masks[:, 2 + k] > 0.5) for k in range(masks.shape[1] - 2)]
+    lifted = _lifted_off(obj, visible, on, moved_share, moved_px) and not _beside_static(obj, statics, on)
+    if carried or moves >= min_frames or not unseen_hand or lifted:
         out[end + 1 :] = True
     return out
+
+
+def _beside_static(boxes: np.ndarray, statics: list[np.ndarray], on: np.ndarray, gap: float = 2.0) -> bool:
+    """Whether the object's box (``boxes`` (N, 4) [px]) at its last contact frame where it is
+    seen comes within ``gap`` [px] of a static's box there: a static can hide its bottom, so
+    its rise says nothing."""
+    during = on[~np.isnan(boxes[on, 0])]
+    if not len(during):
+        return False
+    o, k = boxes[during[-1]], during[-1]
+    return any(not np.isnan(s[k, 0]) and s[k, 0] <= o[2] + gap and o[0] <= s[k, 2] + gap
+               and s[k, 1] <= o[3] + gap and o[1] <= s[k, 3] + gap for s in statics)
+
+
+def _lifted_off(boxes: np.ndarray, visible: np.ndarray, on: np.ndarray, share: float, floor: float) -> bool:
+    """Whether the hand lifted the object and did not set it down: from its last box before the
+    contact to its last box in it, its box's bottom row rose by more than the box's own height
+    (and ``floor`` [px]; a push away from the camera raises it by less), and over the contact's
+    last third it came down from its highest by no more than ``share`` of its larger side
+    (and ``floor``): a put sets it down. ``boxes`` (N, 4) [px], ``visible`` (N,) bool, ``on``
+    the contact frames."""
+    before = np.flatnonzero(visible[: on[0] + 1])
+    during = on[visible[on]]
+    if not len(before) or not len(during):
+        return False
+    start, end = boxes[before[-1]], boxes[during[-1]]
+    rise = start[3] - end[3]
+    last_third = during[during >= on[0] + 2 * (on[-1] - on[0]) // 3]
+    came_down = end[3] - boxes[last_third, 3].min()
+    size = max(end[2] - end[0], end[3] - end[1])
+    return bool(rise > max(end[3] - end[1], floor) and came_down <= max(share * size, floor))
 
 
 def _moved(before: np.ndarray, after: np.ndarray, share: float, floor: float) -> bool:
