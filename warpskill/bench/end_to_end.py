@@ -90,7 +90,7 @@ class RobotOutcome:
         """The outcome as the outcome table keeps it (``CaseOutcome.robot``)."""
         return RobotRecord(self.planned, {engine: self.success(engine) for engine in self.replays},
                            self.robust if self.perturbed else None, tuple(self.misses()),
-                           self.plan.note if self.planned else "")
+                           self.plan.note if self.planned and "substitute" in self.plan.note else "")
 
     def agree(self) -> bool:
         """Whether every engine run gives the same verdict."""
@@ -114,7 +114,7 @@ class RobotOutcome:
         plan = self.plan
         where = "" if plan.offset is None else (f", at ({plan.offset[0]:.2f}, {plan.offset[1]:.2f}) m "
                                                 f"{np.degrees(plan.yaw):.0f} deg")
-        resized = ", substituted object" if plan.note else ""
+        resized = ", substituted object" if "substitute" in plan.note else ", held by its rim" if "rim" in plan.note else ""
         verdicts = [f"{engine} {verdict(result.success)} {result.replay_time:5.1f} s"
                     for engine, result in self.replays.items()]
         return (f"planned {plan.planning_time:4.1f} s ({plan.grasp_name}{where}{resized}); " + "; ".join(verdicts))

@@ -161,8 +161,10 @@ def make_demonstration(
     boxes = input == "boxes"
     variant_rng = np.random.default_rng([seed, ACTIONS.index(action), 1])
     intrinsics = Intrinsics.default(*image_size)
-    for _ in range(50):
+    for attempt in range(50):
         variant = _variant(action, seed, scenarios, chosen, variant_rng) if boxes and not relation else None
+        if relation and attempt == 25:  # a static moved out of view that leaves no room for the relation: back in
+            relation = replace(relation, variant=replace(relation.variant, static_away=0.0))
         script = make_script(action, rng, duration, relation.variant if relation else variant)
         if relation:
             script = replace(script, camera_elevation=relation.camera_elevation)

@@ -1,7 +1,7 @@
 """The relations scenario: put actions and pick-ups as a phone films them on a table.
 
 Static objects with real nouns at about their typical sizes, flat (a book, a plate, a tray)
-and tall (a box, a bowl, a cereal box), often cut by the frame; objects put onto, beside,
+and tall (a box, a bowl, a cereal box), often reaching out of the view; objects put onto, beside,
 behind and in front of them (behind a tall static the object's box is partly or wholly
 hidden); pick-ups of small and flat objects (a phone, a pen, a key, a card); a camera low
 over the table. Every case reaches the optimiser through the Something-Else box reader,
@@ -44,11 +44,19 @@ SIDE_REACH_BELOW = 0.03
 """[m] an object lower than this is reached from the side (``Variant.side_reach``): from the
 camera's side the model hand, a 4 cm cylinder, would hide it while it holds it."""
 
+OUT_OF_VIEW_SHARE = 0.4
+OUT_OF_VIEW_SHIFT = (0.3, 0.7)
+"""The share of put behind / in front of / next to scenes whose static stands farther from the
+object, by this range of its width, so that the frame often cuts it (the object stays in view)."""
+
 CAMERA_ELEVATION = (0.3, 0.55)
 """[rad] range of the camera's elevation: lower than the default scenes', as a phone over a table."""
 
-RELATION_SPOILERS = {"static_cut_by_frame": 0.4, "hand_partly_seen": 0.3, "enters_view": 0.15}
-"""The annotation situations mixed in (put actions only for the first and last), each with its probability."""
+RELATION_SPOILERS = {"hand_partly_seen": 0.3, "enters_view": 0.15}
+"""The annotation situations mixed in (``enters_view`` for put actions only), each with its probability.
+Not ``static_cut_by_frame``: its box stretched to the border would make a named static wider than
+its noun; here a static is cut by the frame where it really reaches out of the view (a tray, a
+cutting board)."""
 
 
 @dataclass(frozen=True)
@@ -79,8 +87,11 @@ def relation_case(action: str, seed: int) -> RelationCase:
     static_noun = str(rng.choice(FLAT_STATICS if rng.random() < 0.5 else TALL_STATICS)) if placed else None
     static_size = _noun_size(static_noun, rng) if placed else None
     variant = draw_variant(action, seed, rng)
+    away = 0.0
+    if placed and action != "put_onto" and rng.random() < OUT_OF_VIEW_SHARE:
+        away = float(rng.uniform(*OUT_OF_VIEW_SHIFT)) * static_size[0]
     variant = Variant(ending=variant.ending, far_start=variant.far_start, object_size=size, static_size=static_size,
-                      clear_static=True, tip_depth=min(TIP_DEPTH, 0.5 * size[2]),
+                      clear_static=True, static_away=away, tip_depth=min(TIP_DEPTH, 0.5 * size[2]),
                       side_reach=size[2] < SIDE_REACH_BELOW)
     spoilers = tuple(name for name, p in RELATION_SPOILERS.items()
                      if (placed or name == "hand_partly_seen") and rng.random() < p)

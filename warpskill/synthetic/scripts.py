@@ -55,6 +55,7 @@ class Variant:
     object_yaw: float = 0.3  # [rad] the object's yaw is drawn in [-object_yaw, object_yaw] (not pushed or pulled)
     static_size: tuple[float, float, float] | None = None  # [m] a put action's static edges (x, y, z) instead of drawn ones
     clear_static: bool = False  # carry the object over the static's top, and stand the static a gap beside it
+    static_away: float = 0.0  # [m] with clear_static, the static stands this much farther from the object (out of view)
     tip_depth: float = TIP_DEPTH  # [m] how deep the tip enters the object from its top (flat objects: less)
     side_reach: bool = False  # the hand reaches a top grasp from the side, not from the camera's side
 
@@ -172,7 +173,7 @@ def _static_box(action: str, centre: np.ndarray, size: np.ndarray, variant: Vari
     if variant is not None and variant.clear_static:
         # A static of any width, its near side a gap away from the object's (x, y).
         gap = u(0.03, 0.08)
-        static_pos = np.array([[centre[0] - side * (gap + (static_size[0, 0] + size[0]) / 2),
+        static_pos = np.array([[centre[0] - side * (gap + variant.static_away + (static_size[0, 0] + size[0]) / 2),
                                 centre[1] + u(0.0, 0.05), static_size[0, 2] / 2]])
     if variant is not None and variant.wide_static:
         # A wide static box, cut by the frame: it extends away from the object.
