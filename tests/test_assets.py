@@ -117,7 +117,8 @@ def test_newton_model_uses_the_scene_config():
     plan, recon = _scene()
     model, info = replay_newton.build_model(plan, recon, device="cpu")
     assert float(model.body_mass.numpy()[info["object_body"]]) == pytest.approx(config.object.mass, rel=1e-5)
-    assert float(model.shape_material_mu.numpy()[info["object_shape"]]) == pytest.approx(config.contact.friction)
+    mu = model.shape_material_mu.numpy()[list(info["object_shapes"])]
+    assert mu == pytest.approx(config.contact.friction)
     ke, kd = model.joint_target_ke.numpy(), model.joint_target_kd.numpy()
     effort = model.joint_effort_limit.numpy()
     driven = np.flatnonzero(ke > 0)
