@@ -304,17 +304,17 @@ def camera_frame_errors(recon, truth: dict[str, np.ndarray]) -> dict[str, float]
         "elevation": float(abs(float(recon.camera_elevation) - float(truth["camera_elevation"]))),
         "scale": float(np.median(np.linalg.norm(est, axis=1) / np.linalg.norm(ref, axis=1))),
         "static_size": static_error,
-        "release_height": abs(_release_height(recon) - _release_height(truth)),
+        "release_height": abs(_release_height(recon.grasped, recon.object_pos, recon.object_rot, recon.object_size)
+                              - _release_height(truth["grasped"], truth["object_pos"], truth["object_rot"],
+                                                truth["object_size"])),
     }
 
 
-def _release_height(scene) -> float:
-    """[m] the height of the object's lowest corner where the hand lets it go (a reconstruction
-    or a ground-truth dict)."""
-    get = (lambda key: scene[key]) if isinstance(scene, dict) else (lambda key: getattr(scene, key))  # noqa: E731
-    k = release_frame(np.asarray(get("grasped")))
-    corners = cuboid_corners(np.asarray(get("object_pos"))[k], np.asarray(get("object_rot"))[k],
-                             np.asarray(get("object_size")))
+def _release_height(grasped, object_pos, object_rot, object_size) -> float:
+    """[m] the height of the object's lowest corner where the hand lets it go (grasped (N,),
+    object poses (N, 3) and (N, 3, 3), edges (3,))."""
+    k = release_frame(np.asarray(grasped))
+    corners = cuboid_corners(np.asarray(object_pos)[k], np.asarray(object_rot)[k], np.asarray(object_size))
     return float(corners[..., 2].min())
 
 

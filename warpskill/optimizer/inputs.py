@@ -230,8 +230,8 @@ def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: in
                 return out
             carried |= not hand_seen[k - 1]  # it left the view: it moved
             gone = True
-    statics = [_boxes(masks[:, 2 + k] > 0.5) for k in range(masks.shape[1] - 2)]
-    lifted = _lifted_off(obj, visible, on, moved_share, moved_px) and not _beside_static(obj, statics, on)
+    lifted = _lifted_off(obj, visible, on, moved_share, moved_px) and not _beside_static(
+        obj, [_boxes(masks[:, 2 + k] > 0.5) for k in range(masks.shape[1] - 2)], on)
     if carried or moves >= min_frames or not unseen_hand or lifted:
         out[end + 1 :] = True
     return out
