@@ -6,18 +6,21 @@ import argparse
 import contextlib
 import functools
 import importlib.metadata
+import json
 import math
+import time
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 from warpskill import robot, visual  # lazy packages: their names (MuJoCo, torch, Warp) load on first use
 from warpskill.contract import ResultsFolder, evaluate
+from warpskill.contract.frame_rate import at_optimiser_rate
 
 if TYPE_CHECKING:  # the optimiser pulls in torch and Warp: imported where used, so the command line starts fast
     from warpskill.optimizer import OptimizeOptions
 
-__all__ = ["add_optimize_options", "add_placement_options", "add_robot_step_options", "installed", "optimize_options",
+__all__ = ["StepClock", "add_optimize_options", "add_placement_options", "add_robot_step_options", "installed", "optimize_options",
            "placement", "plan_robot", "robot_steps_available", "robot_steps_wanted", "reconstruct", "holding_out",
            "report", "save_plan", "save_scene"]
 
@@ -138,11 +141,13 @@ def placement(args):
 def reconstruct(demos, folders: list[Path], checkpoint: Path, options: OptimizeOptions, *, quiet: bool = False,
                 pictures: bool = True):
     """Optimise ``demos`` together with ``options`` (resuming ``checkpoint``); write each npz and
-    pictures into its folder."""
+    pictures into its folder. A video well above 12 fps is optimised on every few of its frames
+    (:func:`~warpskill.contract.frame_rate.at_optimiser_rate`): its reconstruction is at that rate."""
     from warpskill.engine import resolve_device  # torch and Warp: only for a command that optimises
     from warpskill.optimizer import optimize_many  # torch and Warp: only for a command that optimises
 
     resolve_device(options.device)  # a bad device is one error line before any work
+    demos = [at_optimiser_rate(demo) for demo in demos]
     with contextlib.ExitStack() as holding:  # the checkpoint's folder and each output folder: this process alone
         for folder in sorted({checkpoint.parent, *folders}):
             holding.enter_context(ResultsFolder(folder).locked())
@@ -216,3 +221,34 @@ def installed(distribution: str) -> bool:
     except importlib.metadata.PackageNotFoundError:
         return False
     return True
+
+
+class StepClock:
+    """Wall and process CPU seconds per step of a command (``prepare``, ``optimize``, ...), for
+    the table a command prints at its end and ``timing.json`` (docs/formats.md). On a busy
+    machine the CPU seconds are the steadier."""
+
+    def __init__(self):
+        self.steps: dict[str, dict[str, float]] = {}
+
+    @contextlib.contextmanager
+    def step(self, name: str):
+        """Time the block as step ``name`` (a step timed twice adds up)."""
+        wall, cpu = time.perf_counter(), time.process_time()
+        try:
+            yield
+        finally:
+            step = self.steps.setdefault(name, {"seconds": 0.0, "cpu_seconds": 0.0})
+            step["seconds"] += time.perf_counter() - wall
+            step["cpu_seconds"] += time.process_time() - cpu
+
+    def report(self, path: Path) -> None:
+        """Print the seconds per step and their sum in one line; write them to ``path`` (JSON:
+        ``{"steps": {name: {"seconds", "cpu_seconds"}}, "seconds", "cpu_seconds"}``, the sums)."""
+        if not self.steps:
+            return
+        total = {key: sum(step[key] for step in self.steps.values()) for key in ("seconds", "cpu_seconds")}
+        parts = ", ".join(f"{name} {step['seconds']:.1f}" for name, step in self.steps.items())
+        print(f"seconds: {parts}; {total['seconds']:.1f} in all ({path})")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps({"steps": self.steps, **total}, indent=1) + "\n")

@@ -7,6 +7,11 @@ The steps and what each writes under OUT/:
     retarget   plan.npz, plan.csv
     replay     replay.npz
     (then)     scene.rrd, the 3D Rerun recording of all of it (with rerun-sdk)
+    (at last)  timing.json, the seconds each step took (also printed)
+
+A video well above the optimiser's 12 fps (a phone's 30 fps) is optimised on every few of its
+frames (:func:`warpskill.contract.frame_rate.at_optimiser_rate`): the reconstruction, its
+pictures and the robot's timing are at that rate, on the video's clock.
 
 A step is finished when its output file exists and loads (and, for the reconstruction, was
 made with the options asked now, its ``options`` of docs/formats.md, the device aside); a
@@ -25,6 +30,7 @@ from warpskill import robot, visual  # lazy packages: their names (MuJoCo, torch
 from warpskill.cli import common
 from warpskill.cli.prepare import add_recording_options, prepare
 from warpskill.contract import ResultsFolder
+from warpskill.contract.frame_rate import at_optimiser_rate, frame_stride
 from warpskill.data import read_video
 
 __all__ = ["register"]
@@ -43,6 +49,13 @@ def register(commands) -> None:
 
 @common.holding_out
 def _run(args) -> int:
+    clock = common.StepClock()
+    status = _steps(args, clock)
+    clock.report(ResultsFolder(args.out).timing)
+    return status
+
+
+def _steps(args, clock: common.StepClock) -> int:
     options = common.optimize_options(args)
     out = args.out
     keeper = ResultsFolder(out)
@@ -52,25 +65,30 @@ def _run(args) -> int:
     frames = None
     if demo is None:
         redo = True
-        demo, frames = prepare(args, demo_path, sheet_path)
+        with clock.step("prepare"):
+            demo, frames = prepare(args, demo_path, sheet_path)
     else:
         print(f"prepare: done, skipped ({demo_path}, {sheet_path})")
+    stride = frame_stride(demo.fps)
+    demo, frames = at_optimiser_rate(demo), None if frames is None else frames[::stride]
 
     recon_path = keeper.reconstruction
     recon = None if redo else keeper.finished_reconstruction(options.to_json())
     if recon is None:
         redo = True
         if frames is None:
-            frames = _frames(args.video, demo)
-        [recon] = common.reconstruct([demo], [out], keeper.checkpoint, options, quiet=args.quiet, pictures=False)
-        for name, path in visual.save_pictures(recon, demo, out, background=frames).items():
-            print(f"{name}: {path}")
+            frames = _frames(args.video, demo, stride)
+        with clock.step("optimize"):
+            [recon] = common.reconstruct([demo], [out], keeper.checkpoint, options, quiet=args.quiet, pictures=False)
+        with clock.step("pictures"):
+            for name, path in visual.save_pictures(recon, demo, out, background=frames).items():
+                print(f"{name}: {path}")
     else:
         print(f"optimize: done, skipped ({recon_path})")
         common.report(recon, demo.action)
 
     if not common.robot_steps_wanted(args):
-        _scene(recon, demo, args.video, out, redo)
+        _scene(recon, demo, args.video, stride, out, redo, clock)
         return 0
     robot.prefer_headless_gl()
 
@@ -78,9 +96,10 @@ def _run(args) -> int:
     plan = None if redo or not keeper.plan_csv.is_file() else keeper.load_finished(plan_path, robot.RobotPlan.load)
     if plan is None:
         redo = True
-        plan = common.plan_robot(recon, args)
+        with clock.step("retarget"):
+            plan = common.plan_robot(recon, args)
         if plan is None:
-            _scene(recon, demo, args.video, out, redo)
+            _scene(recon, demo, args.video, stride, out, redo, clock)
             return 3
         common.save_plan(plan, plan_path)
     else:
@@ -90,27 +109,32 @@ def _run(args) -> int:
     result = None if redo else keeper.finished_replay()
     if result is None:
         redo = True
-        result = robot.replay(plan, recon, engine=args.engine)
+        with clock.step("replay"):
+            result = robot.replay(plan, recon, engine=args.engine)
         keeper.save(result, replay_path)
         print(f"replay: {replay_path} ({args.engine}, {result.replay_time:.2f} s)")
     else:
         print(f"replay: done, skipped ({replay_path})")
     common.report(result.reconstruction, demo.action)
-    _scene(recon, demo, args.video, out, redo, plan, result)
+    _scene(recon, demo, args.video, stride, out, redo, clock, plan, result)
     return 0 if result.success else 3
 
 
-def _scene(recon, demo, video: Path, out: Path, redo: bool, plan=None, result=None) -> None:
+def _scene(recon, demo, video: Path, stride: int, out: Path, redo: bool, clock: common.StepClock, plan=None,
+           result=None) -> None:
     """The 3D recording (``scene.rrd``) of what exists, the video's frames included, unless nothing
     changed since it was written."""
     if redo or not (out / "scene.rrd").is_file():
-        common.save_scene(recon, demo, out, plan, result, frames=_frames(video, demo))
+        with clock.step("scene"):
+            common.save_scene(recon, demo, out, plan, result, frames=_frames(video, demo, stride))
 
 
-def _frames(video: Path, demo):
-    """The video's frames to draw the pictures on, or None when they are gone or do not fit."""
+def _frames(video: Path, demo, stride: int):
+    """The video's frames the optimiser fitted (every ``stride``-th) to draw the pictures on, or None
+    when they are gone or do not fit ``demo``."""
     try:
         frames, _ = read_video(video)
     except (ValueError, OSError):
         return None
+    frames = frames[::stride]
     return frames if frames.shape[:3] == (demo.num_frames, *demo.image_size) else None

@@ -70,6 +70,7 @@ class ResultsFolder:
     CHECKPOINT = "checkpoint.pt"  #: the optimiser's checkpoint while it runs
     ERROR = "error.txt"  #: why the last attempt failed (its traceback)
     ATTEMPTS = "attempts.log"  #: one line per attempt of a cluster run: "pid unix-time"
+    TIMING = "timing.json"  #: the seconds each step of ``warpskill run`` took
     LOCK = ".lock"  #: the lock file; holds the pid of the process writing the folder
 
     def __init__(self, path: str | os.PathLike):
@@ -86,6 +87,7 @@ class ResultsFolder:
     checkpoint = _File(CHECKPOINT)
     error = _File(ERROR)
     attempts = _File(ATTEMPTS)
+    timing = _File(TIMING)
 
     @property
     def plan_csv(self) -> Path:
