@@ -8,6 +8,12 @@ middle frame that boxes both the hand and the object; the hand is not outlined),
 are made as ``warpskill run`` makes them, and each mask is compared with the annotators'
 box in every frame that boxes it (:func:`warpskill.data.boxes.overlap.box_ious`: the IoU of
 the mask's bounding box with the box; an empty mask counts 0).
+
+With ``no_outline`` nobody outlines: the outline is proposed from the clip
+(:func:`warpskill.data.footage.outline_proposal.propose_outline`, with the action
+:func:`clip_action` and the annotation's noun, as a user gives them), and a clip where the
+proposal is unsure is refused: it gets no masks (every boxed frame counts 0) and its line is
+shown.
 """
 
 from __future__ import annotations
@@ -16,7 +22,9 @@ import dataclasses
 import logging
 import os
 import time
+from pathlib import Path
 
+import cv2
 import numpy as np
 
 from warpskill.bench.outcomes import CaseOutcome, failed_case
@@ -26,6 +34,8 @@ from warpskill.contract.vocabulary import HAND, OBJECT, STATIC, role_kind
 from warpskill.data.boxes.clips import FootageClip, read_footage
 from warpskill.data.boxes.overlap import box_ious
 from warpskill.data.footage.clip_masks import footage_masks
+from warpskill.data.footage.outline_proposal import OutlineUnsure, proposal_picture, propose_outline
+from warpskill.data.recording import IMAGE_SEQUENCE_FPS
 from warpskill.progress import progress_bar
 
 logger = logging.getLogger(__name__)
@@ -65,6 +75,17 @@ def hurried_outline(clip: FootageClip) -> tuple[int, dict[str, np.ndarray]]:
     return frame, masks
 
 
+PUT_ACTION, HOLD_ACTION = "put_onto", "pick_up"
+"""The actions a clip is taken to show without an outline (the clips carry no action name):
+one with a static object where the annotation boxes one, else one without."""
+
+
+def clip_action(clip: FootageClip) -> str:
+    """The action a user would name for ``clip`` as far as the outline goes: :data:`PUT_ACTION`
+    where its annotation boxes a static object, else :data:`HOLD_ACTION`."""
+    return PUT_ACTION if any(role_kind(role) == STATIC for role in clip.boxes) else HOLD_ACTION
+
+
 SHARE_TARGET = 0.85
 """Share of boxed frames a clip's masks should be on their box in (IoU >= :data:`SAME_OBJECT_IOU`)."""
 
@@ -83,6 +104,7 @@ class ClipScores:
         hand_free_masked: how many of them were given a hand mask.
         contact_frames: frames whose contact is on.
         seconds: the time the masks took [s].
+        refused: why the clip got no masks (the proposed outline was unsure), or None.
     """
 
     ious: dict[str, np.ndarray]
@@ -90,11 +112,13 @@ class ClipScores:
     hand_free_masked: int
     contact_frames: int
     seconds: float
+    refused: str | None = None
 
 
 def score_clip(clip: FootageClip, hand: np.ndarray, objects: dict[str, np.ndarray], contact: np.ndarray,
-               seconds: float) -> ClipScores:
-    """The box IoUs of a clip's masks (``hand`` (N, H, W), ``objects`` label -> (N, H, W))."""
+               seconds: float, *, refused: str | None = None) -> ClipScores:
+    """The box IoUs of a clip's masks (``hand`` (N, H, W), ``objects`` label -> (N, H, W));
+    ``refused``: why it has none (empty masks given)."""
     ious = {}
     for role, boxes in clip.boxes.items():
         masks = hand if role == HAND else objects.get(role, np.zeros_like(hand))
@@ -103,28 +127,39 @@ def score_clip(clip: FootageClip, hand: np.ndarray, objects: dict[str, np.ndarra
         ious[key] = np.concatenate([ious.get(key, np.zeros(0)), found[np.isfinite(found)]])
     free = clip.annotated & ~np.isfinite(clip.boxes.get(HAND, np.full((len(hand), 4), np.nan))[:, 0])
     masked = free & hand.reshape(len(hand), -1).any(axis=1)
-    return ClipScores(ious, int(free.sum()), int(masked.sum()), int(np.sum(contact)), seconds)
+    return ClipScores(ious, int(free.sum()), int(masked.sum()), int(np.sum(contact)), seconds, refused)
 
 
 def bench_footage(folder: str | os.PathLike, out: str | os.PathLike | None = None, *, clips: list[str] | None = None,
                   baseline: str | os.PathLike | None = None, save_baseline: str | os.PathLike | None = None,
-                  quiet: bool = False) -> dict[str, ClipScores]:
+                  quiet: bool = False, no_outline: bool = False) -> dict[str, ClipScores]:
     """Each clip of a real-footage folder outlined as a hurried user would
-    (:func:`hurried_outline`), its masks made as ``warpskill run`` makes them
+    (:func:`hurried_outline`), or with ``no_outline`` its outline proposed from the clip
+    (:func:`clip_outline`), its masks made as ``warpskill run`` makes them
     (:func:`warpskill.data.footage.clip_masks.footage_masks`), compared with the boxes; shows a
     table per clip and pooled, writes ``OUT/outcomes.json`` (a clip succeeds when every
     role is on its box in :data:`SHARE_TARGET` of its frames and the hand-free frames stay
-    clear in :data:`CLEAR_TARGET`) and the flips since ``baseline``.
+    clear in :data:`CLEAR_TARGET`; a refused clip fails), with ``no_outline`` each proposal's
+    picture ``OUT/proposals/<clip>.png``, and the flips since ``baseline``.
 
     Returns:
-        clip id -> scores.
+        clip id -> scores (refused clips included, with their reason).
     """
     scores, outcomes = {}, []
     for clip in progress_bar(read_footage(folder, clips), enabled=not quiet, desc="clips", unit="clip"):
         start = time.perf_counter()
         try:
-            key_frame, key_masks = hurried_outline(clip)
-            found = footage_masks(clip.frames, key_frame, key_masks)
+            if no_outline:
+                key_frame, key_masks, hands = clip_outline(clip, out)
+            else:
+                (key_frame, key_masks), hands = hurried_outline(clip), {}
+            found = footage_masks(clip.frames, key_frame, key_masks, **hands)
+        except OutlineUnsure as unsure:
+            empty = np.zeros(clip.frames.shape[:3], dtype=bool)
+            scores[clip.clip_id] = score_clip(clip, empty, {}, np.zeros(len(empty), dtype=bool),
+                                              time.perf_counter() - start, refused=unsure.line)
+            outcomes.append(failed_case(clip.clip_id, "footage", f"refused: {unsure.line}"))
+            continue
         except DemonstrationError as error:
             outcomes.append(failed_case(clip.clip_id, "footage", str(error)))
             logger.warning("%s: %s", clip.clip_id, error)
@@ -135,6 +170,35 @@ def bench_footage(folder: str | os.PathLike, out: str | os.PathLike | None = Non
     show(footage_table(scores))
     record_outcomes(out, outcomes, baseline=baseline, save_baseline=save_baseline)
     return scores
+
+
+def clip_outline(clip: FootageClip, out: str | os.PathLike | None = None):
+    """The outline proposed from ``clip`` (:func:`clip_action`, the annotation's noun, 12 fps),
+    its picture written to ``out/proposals/<clip>.png`` when ``out`` is given.
+
+    Returns:
+        The outlined frame, label -> (H, W) bool masks, and the hands found
+        (:func:`footage_masks`' ``tracks`` and ``regions``).
+
+    Raises:
+        OutlineUnsure: the proposal is unsure (its picture written all the same).
+    """
+    try:
+        proposal = propose_outline(clip.frames, clip_action(clip), fps=IMAGE_SEQUENCE_FPS, object_noun=clip.noun)
+    except OutlineUnsure as unsure:
+        _save_picture(out, clip.clip_id, unsure.picture)
+        raise
+    _save_picture(out, clip.clip_id, proposal_picture(clip.frames[proposal.frame], proposal))
+    return proposal.frame, proposal.masks(), {"tracks": proposal.tracks, "regions": proposal.regions}
+
+
+def _save_picture(out: str | os.PathLike | None, clip_id: str, picture: np.ndarray) -> None:
+    """``picture`` (H, W, 3) uint8 RGB as ``out/proposals/<clip_id>.png`` (nothing without ``out``)."""
+    if out is None:
+        return
+    folder = Path(out) / "proposals"
+    folder.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(folder / f"{clip_id}.png"), cv2.cvtColor(picture, cv2.COLOR_RGB2BGR))
 
 
 def _outcome(clip_id: str, score: ClipScores) -> CaseOutcome:
@@ -171,4 +235,5 @@ def footage_table(scores: dict[str, ClipScores]) -> str:
     seconds = [s.seconds for s in scores.values()]
     lines.append(f"{'all':>8} {cells(pooled)} {masked:>7d} of {free:<6d} {'':>8} "
                  f"{np.median(seconds) if seconds else float('nan'):6.2f} (median)")
+    lines += [f"{clip_id:>8} refused: {score.refused}" for clip_id, score in scores.items() if score.refused]
     return "\n".join(lines)

@@ -157,6 +157,9 @@ def _add_footage(bench) -> None:
     footage.add_argument("-o", "--out", type=Path, default=Path("warpskill-out/footage"),
                          help="output folder of outcomes.json / .csv")
     footage.add_argument("--quiet", action="store_true", help="no progress bar")
+    footage.add_argument("--no-outline", action="store_true",
+                         help="nobody outlines: the outline proposed from each clip (put_onto where a static object is "
+                              "boxed, else pick_up; the boxed noun); a refused clip counts 0 (pictures in OUT/proposals/)")
     _add_baseline_options(footage)
     footage.set_defaults(run=_bench_footage)
 
@@ -273,7 +276,7 @@ def _bench_footage(args) -> int:
     from warpskill.bench.footage import bench_footage
 
     scores = bench_footage(args.folder, args.out, clips=args.clips, baseline=args.baseline,
-                           save_baseline=args.save_baseline, quiet=args.quiet)
+                           save_baseline=args.save_baseline, quiet=args.quiet, no_outline=args.no_outline)
     return 0 if scores else 2
 
 

@@ -1,16 +1,26 @@
-"""``warpskill prepare``: one's own video and one source of masks to a demonstration file."""
+"""``warpskill prepare``: one's own video and at most one source of masks to a demonstration file.
+
+Without a mask source the outline is proposed from the video
+(:func:`warpskill.data.footage.outline_proposal.propose_outline`) and kept as a polygon file
+beside the demonstration, for the user to correct and give back with ``--polygons``; where
+the video does not say what to outline, only a picture of what was seen is written.
+"""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from warpskill import visual  # a lazy package: the contact sheet loads on first use
 from warpskill.cli.common import Refused
 from warpskill.contract import DemonstrationError
-from warpskill.data import read_recording
+from warpskill.data.footage.outline_proposal import OutlineUnsure, propose_outline, write_outline
+from warpskill.data import read_recording, read_video
+from warpskill.data.recording import IMAGE_SEQUENCE_FPS, SOURCES
+from warpskill.data.readers.video import is_image_sequence
 
 __all__ = ["add_recording_options", "prepare", "register"]
 
@@ -18,20 +28,25 @@ __all__ = ["add_recording_options", "prepare", "register"]
 def register(commands) -> None:
     """Add ``prepare`` to the ``commands`` sub-parsers."""
     parser = commands.add_parser(
-        "prepare", help="a video and its masks (or one annotated frame) to a demonstration .npz and a contact sheet"
+        "prepare", help="a video and its masks (or one annotated frame, or none) to a demonstration .npz and a contact sheet"
     )
     add_recording_options(parser)
+    parser.add_argument("--object-noun", metavar="NOUN",
+                        help="what the object is (e.g. mug), saved in the demonstration; without a mask source also "
+                             "bounds the proposed outline (its typical size, the hand as a ruler)")
     parser.add_argument("-o", "--out", type=Path, required=True,
-                        help="demonstration .npz (docs/formats.md); the contact sheet goes beside it (.png)")
+                        help="demonstration .npz (docs/formats.md); the contact sheet goes beside it (.png), and "
+                             "without a mask source the proposed outline (.outline.json)")
     parser.set_defaults(run=_prepare)
 
 
 def add_recording_options(parser: argparse.ArgumentParser) -> None:
-    """The video, exactly one mask source, the contact source, the action, fps and intrinsics."""
+    """The video, at most one mask source, the contact source, the action, the static object's noun, fps and
+    intrinsics (the object's noun is each command's own: ``run`` has it among the optimisation options)."""
     parser.add_argument("video", type=Path,
                         help="the video file (anything OpenCV reads: .mp4, .avi, ...) or numbered frames "
                              "(frames/%%04d.jpg, 12 fps unless --fps)")
-    source = parser.add_mutually_exclusive_group(required=True)
+    source = parser.add_mutually_exclusive_group()
     source.add_argument("--masks", type=Path, metavar="DIR",
                         help="per-object mask folders DIR/hand/, DIR/object/, DIR/static*/ (one image per frame)")
     source.add_argument("--labels", type=Path, metavar="DIR",
@@ -47,26 +62,39 @@ def add_recording_options(parser: argparse.ArgumentParser) -> None:
     contact.add_argument("--detections", type=Path, metavar="CSV",
                          help="contact detections (frame,in_contact[,score]), filtered as in the paper")
     parser.add_argument("--action", required=True, help="the action shown (warpskill.ACTIONS), e.g. pick_up")
+    parser.add_argument("--static-noun", metavar="NOUN",
+                        help="what the (first) static object is (e.g. box), saved in the demonstration; without a "
+                             "mask source also bounds the proposed outline (run: --object-noun does the same for "
+                             "the object)")
     parser.add_argument("--fps", type=float, help="frame rate (default: the video's)")
     parser.add_argument("--intrinsics", type=float, nargs=4, metavar=("FX", "FY", "CX", "CY"),
                         help="camera intrinsics of the video's frames [px] (default: 80 x 60 deg field of view)")
 
 
-def prepare(args, demo_path: Path, sheet_path: Path):
-    """Read the recording named by ``args``; write the demonstration and its contact sheet.
+def prepare(args, demo_path: Path, sheet_path: Path, outline_path: Path | None = None):
+    """Read the recording named by ``args``; write the demonstration and its contact sheet (and,
+    without a mask source, the proposed outline to ``outline_path``, by default beside the
+    demonstration as ``.outline.json``).
 
     Returns:
         The demonstration and the video's frames.
 
     Raises:
         Refused: the recording gives no demonstration (its one line names the file and why),
-            or finding the hand needs MediaPipe, which is not installed; nothing is written.
+            or finding the hand needs MediaPipe, which is not installed; nothing is written
+            but, where the proposed outline is unsure, a picture of what was seen
+            (``.unsure.png`` beside the demonstration).
     """
+    source = next((name for name in SOURCES if getattr(args, name) is not None), None)
+    proposal = None
     try:
+        if source is None:
+            proposal = _propose(args, demo_path)
         demo, frames, landmarks = read_recording(
             args.video, masks=args.masks, labels=args.labels, polygons=args.polygons, boxes=args.boxes,
             video_id=args.video_id, contact=args.contact, detections=args.detections, action=args.action,
-            fps=args.fps, intrinsics=args.intrinsics, frame=args.frame,
+            fps=args.fps, intrinsics=args.intrinsics, frame=args.frame, object_noun=args.object_noun,
+            static_noun=args.static_noun, outline=proposal,
         )
     except (DemonstrationError, ImportError) as error:  # nothing written yet (ImportError: MediaPipe missing)
         raise Refused(str(error)) from None
@@ -74,16 +102,37 @@ def prepare(args, demo_path: Path, sheet_path: Path):
     demo.save(demo_path)
     on = demo.contact.nonzero()[0]
     h, w = demo.image_size
-    source = next(name for name in ("masks", "labels", "polygons", "boxes") if getattr(args, name) is not None)
     print(f"demonstration: {demo_path} ({demo.action}, {demo.num_frames} frames of {w} x {h} at {demo.fps:g} fps, "
-          f"masks from --{source}, {demo.num_static} static; contact in {len(on)} frames, {on[0]}..{on[-1]})")
+          f"masks from {'--' + source if source else 'the proposed outline'}, {demo.num_static} static; "
+          f"contact in {len(on)} frames, {on[0]}..{on[-1]})")
+    if proposal is not None:
+        outline_path = outline_path or demo_path.with_suffix(".outline.json")
+        write_outline(proposal, outline_path)
+        print(f"outline: {outline_path} (proposed on frame {proposal.frame}: {', '.join(proposal.polygons)}; "
+              f"correct it and give it back with --polygons)")
     if landmarks is not None:
         seen = demo.hand_mask.reshape(demo.num_frames, -1).any(axis=1)
         marked = np.isfinite(landmarks[:, 0, 0])
         print(f"hand: found in {int(seen.sum())} of {demo.num_frames} frames, its landmarks in {int(marked.sum())} "
               f"(MediaPipe's hand landmarker, followed; colour and motion where it sees none)")
-    print(f"contact sheet: {visual.contact_sheet(demo, frames, sheet_path, landmarks)}")
+    outline = None if proposal is None else (proposal.frame, proposal.polygons)
+    print(f"contact sheet: {visual.contact_sheet(demo, frames, sheet_path, landmarks, outline=outline)}")
     return demo, frames
+
+
+def _propose(args, demo_path: Path):
+    """The outline proposed from the video; where unsure, its picture written beside the
+    demonstration (``.unsure.png``) and the unsure line raised."""
+    frames, fps = read_video(args.video)
+    fps = args.fps or (IMAGE_SEQUENCE_FPS if is_image_sequence(args.video) else fps) or IMAGE_SEQUENCE_FPS
+    try:
+        return propose_outline(frames, args.action, fps=fps, object_noun=args.object_noun,
+                                       static_noun=args.static_noun)
+    except OutlineUnsure as unsure:
+        picture = demo_path.with_suffix(".unsure.png")
+        picture.parent.mkdir(parents=True, exist_ok=True)
+        cv2.imwrite(str(picture), cv2.cvtColor(unsure.picture, cv2.COLOR_RGB2BGR))
+        raise DemonstrationError(f"{args.video}: {unsure.line}; what was seen: {picture}") from None
 
 
 def _prepare(args) -> int:

@@ -1,8 +1,9 @@
-"""One's own recording to a demonstration: a video file and one source of masks.
+"""One's own recording to a demonstration: a video file and at most one source of masks.
 
 :func:`prepare_recording` reads the video with OpenCV, builds the masks from whichever
 source is given (mask folders, label images, polygons on one frame propagated through the
-video, or Something-Else boxes), settles the contact signal (a contact file as given;
+video, or Something-Else boxes; with none, the polygons proposed from the video itself,
+:func:`warpskill.data.footage.outline_proposal.propose_outline`), settles the contact signal (a contact file as given;
 detections or, lacking them, the masks through the paper's filter) and returns the
 :class:`~warpskill.contract.Demonstration`; :func:`read_recording` also returns the frames and
 the found hand's landmarks (for :func:`warpskill.visual.sheet.contact_sheet`). It joins
@@ -23,6 +24,7 @@ import numpy as np
 from warpskill.contract.actions import check_action
 from warpskill.contract.demonstration import Demonstration, DemonstrationError
 from warpskill.contract.vocabulary import HAND, OBJECT
+from warpskill.data.footage.outline_proposal import OutlineProposal, propose_outline
 from warpskill.data.boxes.something_else import SomethingElseVideo, read_box_annotations, something_else_demonstration
 from warpskill.data.contact import estimate_contact
 from warpskill.data.footage.clip_masks import footage_masks
@@ -34,7 +36,10 @@ from warpskill.data.readers.polygons import read_polygons
 from warpskill.data.readers.video import is_image_sequence, read_video
 
 SOURCES = ("masks", "labels", "polygons", "boxes")
-"""The mask sources of :func:`prepare_recording`; exactly one is given."""
+"""The mask sources of :func:`prepare_recording`; at most one is given (none: the outline is proposed)."""
+
+PROPOSED = "proposed"
+"""The mask source where none is given: the outline proposed from the video, followed as polygons are."""
 
 IMAGE_SEQUENCE_FPS = 12.0
 """Frame rate [1/s] taken for numbered image files without ``fps``: that of the frame
@@ -76,8 +81,11 @@ def read_recording(
     fps: float | None = None,
     intrinsics: tuple[float, float, float, float] | None = None,
     frame: int | None = None,
+    object_noun: str | None = None,
+    static_noun: str | None = None,
+    outline: OutlineProposal | None = None,
 ) -> Recording:
-    """A video and one source of masks as a demonstration, and the video's frames.
+    """A video and at most one source of masks as a demonstration, and the video's frames.
 
     Args:
         video: a video file OpenCV can read, or numbered image files (``frames/%04d.jpg``);
@@ -104,13 +112,25 @@ def read_recording(
         intrinsics: (fx, fy, cx, cy) [px] of the video's frames; None for the default of
             ``docs/formats.md`` (80 x 60 deg field of view).
         frame: the annotated frame of ``polygons``, overriding the file's (0-based).
+        object_noun: what the manipulated object is (overrides the polygon file's); with no
+            mask source also a size prior of the proposed outline.
+        static_noun: what the (first) static object is; with no mask source also a size prior.
+        outline: with no mask source, the outline already proposed on this video's frames
+            (:func:`propose_outline`); None proposes it here.
+
+    With no mask source the outline is proposed from the video (:func:`propose_outline`:
+    the object the hand takes, the static object of a ``put_*`` action) and followed as
+    ``polygons`` are.
 
     Returns:
         The demonstration (masks cleaned: the largest blob per frame; the object's noun from
-        the polygon file's ``object_noun``), the frames and the found hand's landmarks.
+        ``object_noun``, else the polygon file's ``object_noun``), the frames and the found
+        hand's landmarks.
 
     Raises:
-        DemonstrationError: naming the file (or option) and the problem: not exactly one
+        OutlineUnsure: no mask source and the video does not say what to outline (its line
+            says what; it carries a picture of what was seen).
+        DemonstrationError: naming the file (or option) and the problem: more than one
             mask source, an unknown action, a video OpenCV cannot decode or without a frame
             rate, masks of another size or frame count, polygons outside the image or on
             a frame the video lacks, no hand found in any frame, an object lost in every
@@ -119,28 +139,36 @@ def read_recording(
         FileNotFoundError: a file or folder does not exist.
     """
     source, where = _mask_source(dict(zip(SOURCES, (masks, labels, polygons, boxes))), contact=contact,
-                                 detections=detections, video_id=video_id, frame=frame, action=action)
+                                 detections=detections, video_id=video_id, frame=frame, action=action, outline=outline)
     frames, fps = _frames(video, fps)
     camera_K = _camera_matrix(intrinsics)
-    hand, obj, static, found, noun = _masks(source, where, video, frames, frame=frame, video_id=video_id, action=action)
+    if source == PROPOSED:
+        if outline is None:
+            outline = propose_outline(frames, action, fps=fps, object_noun=object_noun, static_noun=static_noun)
+        where = f"{video} (the proposed outline)"
+    hand, obj, static, found, noun = _masks(source, where, video, frames, frame=frame, video_id=video_id, action=action,
+                                            outline=outline)
+    if static_noun is not None and not static:
+        raise DemonstrationError(f"static_noun: {where} has no static object")
     signal = _contact(contact, detections, found, hand, obj, video, where)
     try:
         demo = Demonstration.from_arrays(
             hand, obj, signal, fps, static_mask=np.stack(static) if static else None, camera_K=camera_K, action=action,
-            object_noun=noun,
+            object_noun=object_noun or noun, static_nouns=(static_noun,) + (None,) * (len(static) - 1) if static else (),
         )
     except DemonstrationError as exc:
         raise DemonstrationError(f"{contact if contact is not None else where}: {exc}") from None
     return Recording(demo, frames, None if found is None else found.landmarks)
 
 
-def _mask_source(sources: dict, *, contact, detections, video_id, frame, action: str) -> tuple[str, object]:
-    """The one mask source given among ``sources`` (name -> path or None), as (name, path); the
-    options checked against it."""
+def _mask_source(sources: dict, *, contact, detections, video_id, frame, action: str, outline) -> tuple[str, object]:
+    """The mask source given among ``sources`` (name -> path or None), as (name, path), or
+    (:data:`PROPOSED`, None) for none; the options checked against it."""
     given = {name: value for name, value in sources.items() if value is not None}
-    if len(given) != 1:
-        names = ", ".join(given) if given else "none"
-        raise DemonstrationError(f"give exactly one mask source of {', '.join(SOURCES)} (got {names})")
+    if len(given) > 1:
+        raise DemonstrationError(f"give at most one mask source of {', '.join(SOURCES)} (got {', '.join(given)})")
+    if outline is not None and given:
+        raise DemonstrationError(f"outline: only without a mask source (got {', '.join(given)})")
     if contact is not None and detections is not None:
         raise DemonstrationError("give a contact file or a detections file, not both")
     if video_id is not None and "boxes" not in given:
@@ -151,8 +179,7 @@ def _mask_source(sources: dict, *, contact, detections, video_id, frame, action:
         check_action(action)
     except ValueError as exc:
         raise DemonstrationError(f"action: {exc}") from None
-    [(source, where)] = given.items()
-    return source, where
+    return next(iter(given.items()), (PROPOSED, None))
 
 
 def _frames(video, fps: float | None) -> tuple[np.ndarray, float]:
@@ -165,23 +192,29 @@ def _frames(video, fps: float | None) -> tuple[np.ndarray, float]:
     return frames, fps
 
 
-def _masks(source: str, where, video, frames: np.ndarray, *, frame: int | None, video_id: str | None, action: str):
-    """Hand (N, H, W), object (N, H, W) and static [(N, H, W)] masks of the mask source, cleaned, the
-    found hand (or None) and the object's noun (or None)."""
+def _masks(source: str, where, video, frames: np.ndarray, *, frame: int | None, video_id: str | None, action: str,
+           outline: OutlineProposal | None):
+    """Hand (N, H, W), object (N, H, W) and static [(N, H, W)] masks of the mask source (or of
+    the proposed ``outline``), cleaned, the found hand (or None) and the object's noun (or None)."""
     n, h, w = frames.shape[:3]
     found, noun = None, None
     if source in ("masks", "labels"):
         if source == "masks" and not (Path(where) / "hand").is_dir():
             raise FileNotFoundError(f"{where}: no hand/ folder (--masks reads hand/, object/, static*/ folders)")
         hand, obj, static = read_masks(where)
-    elif source == "polygons":
-        key_frame, key_masks, noun = read_polygons(where, (h, w), frame=frame)
+    elif source in ("polygons", PROPOSED):
+        hands = {}
+        if source == PROPOSED:
+            key_frame, key_masks, noun = outline.frame, outline.masks(), outline.nouns.get(OBJECT)
+            hands = {"tracks": outline.tracks, "regions": outline.regions}
+        else:
+            key_frame, key_masks, noun = read_polygons(where, (h, w), frame=frame)
         if key_frame >= n:
             raise DemonstrationError(f"{where}: frame {key_frame} is not in {video}, which has frames 0..{n - 1}")
         if HAND in key_masks:
             propagated = propagate_masks(frames, key_frame, key_masks)
         else:
-            found = _found(video, frames, key_frame, key_masks)
+            found = _found(video, frames, key_frame, key_masks, **hands)
             propagated = {HAND: found.hand, **found.objects}
         hand, obj = propagated.pop(HAND), propagated.pop(OBJECT)
         static = list(propagated.values())
@@ -217,10 +250,11 @@ def _contact(contact, detections, found, hand: np.ndarray, obj: np.ndarray, vide
     return signal
 
 
-def _found(video, frames: np.ndarray, key_frame: int, key_masks: dict[str, np.ndarray]):
-    """:func:`~warpskill.data.footage.clip_masks.footage_masks`; an error naming the video where no hand is
-    found in any frame or an outlined object is lost in every frame."""
-    found = footage_masks(frames, key_frame, key_masks)
+def _found(video, frames: np.ndarray, key_frame: int, key_masks: dict[str, np.ndarray], **hands):
+    """:func:`~warpskill.data.footage.clip_masks.footage_masks` (``hands``: its ``tracks`` and
+    ``regions`` when already found); an error naming the video where no hand is found in any
+    frame or an outlined object is lost in every frame."""
+    found = footage_masks(frames, key_frame, key_masks, **hands)
     if not found.hand.any():
         raise DemonstrationError(
             f"{video}: no hand found in any of its {len(frames)} frames; outline the hand on one frame (hand key)"

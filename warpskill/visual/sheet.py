@@ -2,7 +2,7 @@
 
 :func:`contact_sheet` draws the masks over sampled frames (each role in its colour of the
 palette, :mod:`warpskill.media`), each frame's contact flag, the found hand's landmarks
-where given, and a strip of the contact signal of every frame. OpenCV only; the command
+where given, the outline proposed on one frame where given (dashed, on that frame's tile), and a strip of the contact signal of every frame. OpenCV only; the command
 line hands it what :func:`warpskill.data.read_recording` read.
 """
 
@@ -36,7 +36,8 @@ HAND_BONES = ((0, 1), (1, 2), (2, 3), (3, 4), (0, 5), (5, 6), (6, 7), (7, 8), (5
 
 
 def contact_sheet(
-    demo: Demonstration, frames: np.ndarray | None, path: str | os.PathLike, landmarks: np.ndarray | None = None
+    demo: Demonstration, frames: np.ndarray | None, path: str | os.PathLike, landmarks: np.ndarray | None = None,
+    *, outline: tuple[int, dict[str, np.ndarray]] | None = None,
 ) -> Path:
     """Draw the masks over sampled frames with each frame's contact flag, and a strip of the
     contact signal of every frame; write it as a PNG (OpenCV).
@@ -47,6 +48,9 @@ def contact_sheet(
         path: the PNG to write.
         landmarks: (N, 21, 2) the found hand's landmarks [px] (NaN rows where none), drawn
             as a skeleton; None draws none.
+        outline: the outline proposed from the video, (frame, label (``object``,
+            ``static_0``, ...) -> (K, 2) polygon [px]), drawn dashed in white on that frame's
+            tile (which is then among the drawn frames), its header saying so; None draws none.
 
     Returns:
         ``path``.
@@ -64,6 +68,8 @@ def contact_sheet(
     tile_w, tile_h = int(round(w * scale)), int(round(h * scale))
     header, gap = 18, 4
     picks = np.unique(np.round(np.linspace(0, n - 1, min(n, SHEET_TILES))).astype(int))
+    if outline is not None and outline[0] not in picks:
+        picks = np.sort(np.append(np.delete(picks, np.argmin(np.abs(picks - outline[0]))), outline[0]))
     columns = min(4, len(picks))
     rows = -(-len(picks) // columns)
     width = columns * (tile_w + gap) + gap
@@ -73,12 +79,15 @@ def contact_sheet(
         tile = _overlay(demo, frames, int(k))
         if landmarks is not None:
             _skeleton(tile, landmarks[k])
+        outlined = outline is not None and outline[0] == k
+        if outlined:
+            _dashed(tile, outline[1].values())
         tile = cv2.resize(tile, (tile_w, tile_h), interpolation=cv2.INTER_NEAREST if scale > 1 else cv2.INTER_AREA)
         y = gap + (index // columns) * (tile_h + header + gap)
         x = gap + (index % columns) * (tile_w + gap)
         on = bool(demo.contact[k])
         sheet[y : y + header, x : x + tile_w] = CONTACT_COLOR if on else NO_CONTACT_COLOR
-        text = f"frame {k}  " + ("contact" if on else "no contact")
+        text = f"frame {k}  " + ("contact" if on else "no contact") + ("  outline" if outlined else "")
         cv2.putText(sheet, text, (x + 4, y + header - 5), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (255, 255, 255), 1, cv2.LINE_AA)
         sheet[y + header : y + header + tile_h, x : x + tile_w] = tile
     _strip(sheet, demo, picks, sheet.shape[0] - strip_h, gap)
@@ -100,6 +109,22 @@ def _overlay(demo: Demonstration, frames: np.ndarray, k: int) -> np.ndarray:
         contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
         cv2.drawContours(tile, contours, -1, ROLE_COLORS[role], 1)
     return tile
+
+
+DASH_PX = 4
+"""Length [px] of the dashes and gaps of a proposed outline's polygons on the sheet."""
+
+
+def _dashed(tile: np.ndarray, polygons) -> None:
+    """Each polygon (K, 2) [px] drawn dashed in white on ``tile`` in place."""
+    for points in polygons:
+        closed = np.vstack([points, points[:1]]) - 0.5
+        for a, b in zip(closed[:-1], closed[1:]):
+            length = float(np.linalg.norm(b - a))
+            for start in np.arange(0.0, length, 2 * DASH_PX):
+                p, q = a + (b - a) * start / max(length, 1e-9), a + (b - a) * min(start + DASH_PX, length) / max(length, 1e-9)
+                cv2.line(tile, tuple(np.round(p * 16).astype(int)), tuple(np.round(q * 16).astype(int)), (255, 255, 255), 1,
+                         cv2.LINE_AA, shift=4)
 
 
 def _skeleton(tile: np.ndarray, points: np.ndarray) -> None:

@@ -32,7 +32,7 @@ import numpy as np
 from warpskill.contract.vocabulary import OBJECT
 from warpskill.data.contact import UNKNOWN, detections_from_masks, filter_contact
 from warpskill.data.footage.following import follow_outlines, visible_masks
-from warpskill.data.footage.hand_landmarks import find_hands
+from warpskill.data.footage.hand_landmarks import HandTracks, find_hands
 from warpskill.data.footage.hand_regions import hand_regions
 from warpskill.data.footage.hands import choose_hand, hand_masks
 from warpskill.data.footage.model_hand import model_hand_masks
@@ -62,13 +62,16 @@ class FootageMasks:
     contact: np.ndarray
 
 
-def footage_masks(frames: np.ndarray, key_frame: int, key_masks: dict[str, np.ndarray]) -> FootageMasks:
+def footage_masks(frames: np.ndarray, key_frame: int, key_masks: dict[str, np.ndarray], *,
+                  tracks: HandTracks | None = None, regions: np.ndarray | None = None) -> FootageMasks:
     """The hand found and the outlined objects followed through a clip (see the module docstring).
 
     Args:
         frames: (N, H, W, 3) uint8 RGB frames.
         key_frame: the outlined frame's index.
         key_masks: ``object`` and ``static_k`` -> (H, W) bool masks on the outlined frame.
+        tracks, regions: the clip's hands when already found (:func:`find_hands` and
+            :func:`hand_regions` of these frames, e.g. by an outline's proposal); None finds them.
 
     Returns:
         The masks, the chosen hand's landmarks and the contact (all empty / NaN / off where
@@ -78,8 +81,8 @@ def footage_masks(frames: np.ndarray, key_frame: int, key_masks: dict[str, np.nd
         ImportError: MediaPipe is not installed (the ``video`` extra).
     """
     n, h, w = frames.shape[:3]
-    tracks = find_hands(frames)
-    regions = hand_regions(frames, tracks)  # where no landmark hand is
+    tracks = find_hands(frames) if tracks is None else tracks
+    regions = hand_regions(frames, tracks) if regions is None else regions  # where no landmark hand is
     every_hand = regions.copy()
     for landmarks in tracks.all_landmarks():
         every_hand |= hand_masks(landmarks, (h, w), forearm=True)

@@ -96,10 +96,16 @@ def read_polygons(path: str | os.PathLike, image_size: tuple[int, int], *, frame
         area = 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
         if area < 1.0:
             raise DemonstrationError(f"{path}: {key}: the polygon encloses {area:g} px^2, less than one pixel")
-        mask = np.zeros(image_size, dtype=np.uint8)
-        cv2.fillPoly(mask, [np.round((points - 0.5) * 16).astype(np.int32)], 1, shift=4)
-        masks[label] = mask.astype(bool)
+        masks[label] = polygon_mask(points, image_size)
     return Outline(polygons["frame"], masks, polygons.get("object_noun"))
+
+
+def polygon_mask(points: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """(H, W) bool: the pixels whose centres the polygon ``points`` (K, 2) [px, continuous,
+    (0, 0) the image's top-left corner] encloses, as the polygon file is read."""
+    mask = np.zeros(image_size, dtype=np.uint8)
+    cv2.fillPoly(mask, [np.round((np.asarray(points, dtype=float) - 0.5) * 16).astype(np.int32)], 1, shift=4)
+    return mask.astype(bool)
 
 
 def read_labelme(path: str | os.PathLike, *, frame: int | None = None) -> dict:

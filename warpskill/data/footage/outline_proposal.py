@@ -1,0 +1,505 @@
+"""The outline proposed from the video itself: the object the hand takes and, for an action
+with a static object, the object it is set onto, beside, behind or in front of.
+
+The footage path follows an outline drawn on one frame (the polygon file of
+``docs/formats.md``). :func:`propose_outline` draws that outline from the clip, with OpenCV
+and MediaPipe's hand model only:
+
+1. **The hands** are found in every frame (:func:`.hand_landmarks.find_hands`, and a hand it
+   misses by colour and motion, :func:`.hand_regions.hand_regions`); one hand per frame is
+   chosen (:func:`.hands.choose_hand`). Its grip is the fingertips' centre.
+2. **The outlined frame** is where the hand is at the object: the frame whose grip moves
+   least (camera shake included), among the frames the hand is seen in; for an action with a
+   static object among the later half of them, the release, where the object rests beside
+   the static object.
+3. **The object** is cut out by GrabCut seeded at the grip: surely the object just past the
+   fingertips, probably the object within its size of the grip, surely not the hands; the
+   size is the object noun's typical size measured with the hand as a ruler (a palm is
+   :data:`~warpskill.nouns.typical.HAND_BREADTH` broad), or :data:`DEFAULT_OBJECT_EDGES`.
+   The piece that holds the seed is the object.
+4. **The static object** (:func:`warpskill.contract.actions.has_static_object`) is cut out
+   the same way, seeded beside the object on the side the action names (below it for
+   ``put_onto`` and ``put_behind``, above it for ``put_in_front_of``, away from the arm for
+   ``put_next_to``), the object and the hands surely not it.
+
+Where the clip does not say what to outline (no hand in any frame, two hands apart, nothing
+told apart at the grip, the static side out of view), :class:`OutlineUnsure` carries the
+one line saying what to outline and a picture of what was seen.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+
+import cv2
+import numpy as np
+
+from warpskill.contract.actions import has_static_object
+from warpskill.contract.demonstration import DemonstrationError
+from warpskill.contract.vocabulary import OBJECT, static_role
+from warpskill.data.footage.hand_landmarks import (
+    FINGERTIPS,
+    INDEX_KNUCKLE,
+    PINKY_KNUCKLE,
+    WRIST,
+    HandTracks,
+    check_frames,
+    find_hands,
+    hand_size,
+    hull_mask,
+)
+from warpskill.data.footage.hand_regions import hand_regions
+from warpskill.data.footage.hands import choose_hand, hand_masks
+from warpskill.data.readers.polygons import polygon_mask
+from warpskill.media import HAND_COLOR, OBJECT_COLOR, STATIC_COLOR
+from warpskill.nouns.typical import HAND_BREADTH, typical_size
+
+DEFAULT_OBJECT_EDGES = (0.07, 0.15)
+"""[m] middle and longest edge taken for an object without a noun: a hand-held everyday
+object (a phone, a cup, a book are 7-15 cm across)."""
+
+DEFAULT_STATIC_EDGES = (0.2, 0.3)
+"""[m] middle and longest edge taken for a static object without a noun: a box, a tray, a
+shelf's board, larger than what is set on it."""
+
+SEED_HAND_SIZES = (0.3, 1.5)
+"""Least and most radius of the probable object around its seed, in hand sizes: a small
+object still gets a disc a finger wide, a large one no more than the reach of the grip."""
+
+SURE_HAND_SIZE = 0.15
+"""Radius of the sure object (or static object) at its seed, in hand sizes (a fingertip)."""
+
+SEARCH_EDGES = 1.5
+"""Half the side of the square GrabCut looks in, in longest edges of the expected object
+(at least one hand size): what lies farther from the seed is surely background."""
+
+TIGHT_HAND_FRACTION = 0.1
+"""Half a finger's thickness as a fraction of the hand's size: the chosen hand's landmarks'
+hull widened this much is surely not the object (the looser hand mask of
+:func:`.hands.hand_masks` would swallow a small object under the fingers)."""
+
+MIN_OBJECT_HAND_AREA = 0.03
+"""Smallest object, its area in squared hand sizes (a 1.5 cm button against an 8.5 cm palm):
+less is nothing told apart."""
+
+MAX_OBJECT_SHARE = 0.6
+"""Largest object, as a share of the frame: more is the background taken for the object."""
+
+APART_HAND_SIZES = 3.0
+"""Two hands whose grips are farther apart than this many hand sizes in most frames they are
+both seen in could each hold the object."""
+
+CARRIED_HAND_SIZES = 0.5
+"""Least shift of the grip from the key frame's, in hand sizes, for a frame to tell a carried
+piece from one left in place (less, and both look alike)."""
+
+CARRIED_FRAMES = 6
+"""Most frames on each side of the key frame a piece's motion is judged on (half a second
+at 12 fps: before the hand has turned the object much)."""
+
+CARRIED_SCORE = 0.2
+"""Least :func:`_carried` score of a piece moving with the hand; below, the piece past the
+fingertips is taken (a pressed or poked object does not move with the hand)."""
+
+THUMB_BASE, THUMB_TIP = 2, 4
+"""Indices of the thumb's knuckle (MCP joint) and tip among MediaPipe's 21 hand landmarks."""
+
+GRABCUT_ROUNDS = 5
+"""GrabCut's iterations (its colour models settle within a few)."""
+
+POLYGON_TOLERANCE_PX = 0.75
+"""Largest distance [px] of a proposed polygon from the traced mask's border."""
+
+
+class OutlineUnsure(DemonstrationError):
+    """The clip does not say what to outline.
+
+    Attributes:
+        line: one line: what was seen and what to outline.
+        frame: the frame shown.
+        picture: (H, W, 3) uint8 RGB, that frame with what was seen drawn on it.
+    """
+
+    def __init__(self, line: str, frame: int, picture: np.ndarray):
+        super().__init__(line)
+        self.line, self.frame, self.picture = line, frame, picture
+
+
+@dataclasses.dataclass(frozen=True)
+class OutlineProposal:
+    """An outline proposed on one frame of a clip.
+
+    Attributes:
+        frame: the frame the polygons are on (0-based).
+        polygons: label (``object``, ``static_0``, ...) -> (K, 2) float polygon (x, y) [px,
+            continuous, (0, 0) the image's top-left corner].
+        nouns: label -> noun, for the labels a noun was given for.
+        image_size: (H, W) of the frames [px].
+        tracks: the clip's hands (:func:`find_hands`), so the footage path does not find them again.
+        regions: (N, H, W) bool, the hands found by colour and motion where no landmarks are
+            (:func:`hand_regions`).
+        seeds: label -> (x, y) [px], where each cut-out was seeded.
+    """
+
+    frame: int
+    polygons: dict[str, np.ndarray]
+    nouns: dict[str, str]
+    image_size: tuple[int, int]
+    tracks: HandTracks
+    regions: np.ndarray
+    seeds: dict[str, tuple[float, float]]
+
+    def masks(self) -> dict[str, np.ndarray]:
+        """Label -> (H, W) bool: the polygons filled as the polygon file is read."""
+        return {label: polygon_mask(points, self.image_size) for label, points in self.polygons.items()}
+
+
+def propose_outline(frames: np.ndarray, action: str, *, fps: float, object_noun: str | None = None,
+                    static_noun: str | None = None) -> OutlineProposal:
+    """The object the hand takes and the static objects, outlined on one frame of a clip (see
+    the module docstring).
+
+    Args:
+        frames: (N, H, W, 3) uint8 RGB frames, in time order.
+        action: the action shown (:data:`warpskill.ACTIONS`); a ``put_*`` action has a static object.
+        fps: the frame rate [1/s] (the grip's speed is measured per second).
+        object_noun, static_noun: what the object and the static object are (their typical
+            sizes bound the cut-outs); None for a default size.
+
+    Returns:
+        The proposal.
+
+    Raises:
+        OutlineUnsure: the clip does not say what to outline (its line says what to outline).
+        DemonstrationError: an unknown action, or a static noun for an action without a static object.
+        ImportError: MediaPipe is not installed (the ``video`` extra).
+    """
+    frames = check_frames(frames)
+    try:
+        static = has_static_object(action)
+    except ValueError as error:
+        raise DemonstrationError(f"action: {error}") from None
+    if static_noun is not None and not static:
+        raise DemonstrationError(f"static_noun: {action} has no static object")
+    n, h, w = frames.shape[:3]
+    what = "the object" + (" and the static object" if static else "")
+    tracks = find_hands(frames)
+    regions = hand_regions(frames, tracks)
+    landmarks = choose_hand(tracks)
+    grips, sizes = _grips(landmarks, regions)
+    seen = np.flatnonzero(np.isfinite(grips[:, 0]))
+    if not len(seen):
+        raise OutlineUnsure(f"no hand in any of the {n} frames: outline {what} on one frame (--polygons)",
+                            n // 2, _picture(frames[n // 2], {}, None, None))
+    key = _key_frame(grips, sizes, seen, fps, later_half=static)
+    grip, size = grips[key], float(sizes[key])
+    hands = _every_hand(tracks, regions, key) | _tight_hand(landmarks[key], regions[key], (h, w))
+    _check_one_grip(tracks, key, frames[key], hands, what)
+    nouns = {OBJECT: object_noun} if object_noun else {}
+    edges = _edges_px(object_noun, DEFAULT_OBJECT_EDGES, size)
+    pieces = [(seed, piece) for seed in _object_seeds(landmarks[key], grip, size)
+              if _plausible(piece := _cut_out(frames[key], seed, size, edges, hands), size)]
+    if not pieces:
+        raise OutlineUnsure(f"frame {key}: nothing told apart at the hand's fingertips: outline {what} on one frame "
+                            f"(--polygons)", key, _picture(frames[key], {}, hands, grip))
+    carried = np.array([_carried(frames, key, piece, grips, sizes, tracks, regions) for _, piece in pieces])
+    if (carried > CARRIED_SCORE).any():
+        chosen = np.flatnonzero(carried > CARRIED_SCORE)
+    else:
+        chosen = [int(np.argmax([_contrast(frames[key], piece, hands, size) for _, piece in pieces]))]
+    seed = pieces[chosen[0]][0]
+    obj = _under_hand(np.any([pieces[k][1] for k in chosen], axis=0), hands, grip)
+    masks, seeds = {OBJECT: obj}, {OBJECT: seed}
+    if static:
+        label = static_role(0)
+        edges = _edges_px(static_noun, DEFAULT_STATIC_EDGES, size)
+        seeds[label] = _static_seed(action, obj, landmarks[key], edges, size)
+        masks[label] = _cut_out(frames[key], seeds[label], size, edges, hands | obj) if _inside(seeds[label], (h, w)) \
+            else np.zeros((h, w), dtype=bool)
+        if not _plausible(masks[label], size):
+            raise OutlineUnsure(f"frame {key}: no static object told apart {_SIDES[action]} the object: outline it "
+                                f"(--polygons)", key, _picture(frames[key], masks, hands, seeds[label]))
+        if static_noun:
+            nouns[label] = static_noun
+    polygons = {label: _polygon(mask) for label, mask in masks.items()}
+    return OutlineProposal(key, polygons, nouns, (h, w), tracks, regions, {k: tuple(map(float, v)) for k, v in seeds.items()})
+
+
+def write_outline(proposal: OutlineProposal, path: str | os.PathLike) -> None:
+    """Write the proposal as the polygon file ``--polygons`` reads (``docs/formats.md``):
+    ``frame``, ``object``, ``static`` and, when known, ``object_noun``."""
+    statics = sorted((label for label in proposal.polygons if label != OBJECT), key=lambda label: int(label.split("_")[1]))
+    data = {"frame": int(proposal.frame), "object": _rounded(proposal.polygons[OBJECT]),
+            "static": [_rounded(proposal.polygons[label]) for label in statics]}
+    if OBJECT in proposal.nouns:
+        data["object_noun"] = proposal.nouns[OBJECT]
+    with open(path, "w") as handle:
+        json.dump(data, handle)
+        handle.write("\n")
+
+
+def proposal_picture(frame: np.ndarray, proposal: OutlineProposal) -> np.ndarray:
+    """(H, W, 3) uint8 RGB: the outlined frame ``frame`` with the proposal's polygons and seeds drawn."""
+    masks = proposal.masks()
+    return _picture(frame, masks, None, None, seeds=proposal.seeds)
+
+
+_SIDES = {"put_onto": "below", "put_behind": "in front of", "put_in_front_of": "behind", "put_next_to": "beside"}
+"""Where the static object lies from the object, in words, per action with a static object."""
+
+
+def _grips(landmarks: np.ndarray, regions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 2) the chosen hand's grip (its fingertips' centre; a colour-and-motion region's point
+    farthest into the image) [px] and (N,) its size [px]; NaN where no hand is seen."""
+    n = len(landmarks)
+    grips = np.nanmean(landmarks[:, list(FINGERTIPS)], axis=1) if n else np.zeros((0, 2))
+    sizes = hand_size(landmarks)
+    known = np.isfinite(sizes)
+    typical = float(np.median(sizes[known])) if known.any() else np.nan
+    for k in np.flatnonzero(~known & regions.reshape(n, -1).any(axis=1)):
+        inside = cv2.distanceTransform(np.pad(regions[k], 1).astype(np.uint8), cv2.DIST_L2, 3)[1:-1, 1:-1]
+        border = cv2.distanceTransform(np.pad(np.ones_like(regions[k], np.uint8), 1, constant_values=0),
+                                       cv2.DIST_L2, 3)[1:-1, 1:-1]
+        y, x = np.unravel_index(np.argmax(np.where(regions[k], border + 0.01 * inside, -1.0)), regions[k].shape)
+        grips[k] = (x + 0.5, y + 0.5)
+        sizes[k] = typical if np.isfinite(typical) else 0.5 * np.sqrt(regions[k].sum())
+    return grips, sizes
+
+
+def _key_frame(grips: np.ndarray, sizes: np.ndarray, seen: np.ndarray, fps: float, *, later_half: bool) -> int:
+    """The frame the hand is at the object: its grip's slowest frame [hand sizes per second]
+    among the ``seen`` frames (the later half of them for a release), the earliest on ties."""
+    candidates = seen[len(seen) // 2 :] if later_half else seen
+    speed = np.full(len(grips), np.inf)
+    for k in candidates:
+        steps = [np.linalg.norm(grips[j] - grips[k]) * fps / abs(j - k) for j in (k - 1, k + 1)
+                 if 0 <= j < len(grips) and np.isfinite(grips[j, 0])]
+        speed[k] = np.mean(steps) / sizes[k] if steps else np.inf
+    if not np.isfinite(speed[candidates]).any():
+        return int(candidates[len(candidates) // 2])
+    return int(candidates[np.argmin(speed[candidates])])
+
+
+def _every_hand(tracks: HandTracks, regions: np.ndarray, k: int) -> np.ndarray:
+    """(H, W) bool: every hand seen in frame ``k``, forearms included."""
+    out = regions[k].copy()
+    for landmarks in tracks.all_landmarks():
+        out |= hand_masks(landmarks[k : k + 1], tracks.image_size, forearm=True)[0]
+    return out
+
+
+def _tight_hand(points: np.ndarray, region: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """(H, W) bool: the chosen hand drawn tight (its landmarks' hull widened by
+    :data:`TIGHT_HAND_FRACTION` of its size, the forearm) or its region."""
+    if not np.isfinite(points).all():
+        return region.copy()
+    loose = hand_masks(points[None], image_size, forearm=True)[0]
+    hand = hand_masks(points[None], image_size, forearm=False)[0]
+    return (loose & ~hand) | hull_mask(points, image_size, TIGHT_HAND_FRACTION * float(hand_size(points)))
+
+
+def _check_one_grip(tracks: HandTracks, key: int, frame: np.ndarray, hands: np.ndarray, what: str) -> None:
+    """OutlineUnsure where two hands are seen in frame ``key`` with grips farther apart than
+    :data:`APART_HAND_SIZES` hand sizes: either could hold the object."""
+    present = np.flatnonzero(tracks.present()[key])
+    if len(present) < 2:
+        return
+    points = tracks.landmarks[key, present]
+    grips = points[:, list(FINGERTIPS)].mean(axis=1)
+    if np.linalg.norm(grips[0] - grips[1]) > APART_HAND_SIZES * float(np.max(hand_size(points))):
+        raise OutlineUnsure(f"frame {key}: two hands apart, either could hold the object: outline {what} on one frame "
+                            f"(--polygons)", key, _picture(frame, {}, hands, None, seeds={"grip": tuple(grips[0]),
+                                                                                           "other grip": tuple(grips[1])}))
+
+
+def _edges_px(noun: str | None, default: tuple[float, float], size: float) -> tuple[float, float]:
+    """The middle and longest edge [px] of an object of ``noun`` (``default`` [m] without a
+    known one), measured with the hand of ``size`` [px] as a ruler."""
+    typical = typical_size(noun)
+    middle, longest = default if typical is None else typical.edges[1:]
+    return middle * size / HAND_BREADTH, longest * size / HAND_BREADTH
+
+
+def _object_seeds(points: np.ndarray, grip: np.ndarray, size: float) -> list[np.ndarray]:
+    """(2,) [px] seeds where the object may be: past the fingertips (what a finger presses or
+    pokes), past the index and the little finger's knuckles and past the thumb (what the fist
+    holds sticks out at its sides); the grip alone for a hand found only as a region."""
+    if not np.isfinite(points).all():
+        return [grip]
+
+    def past(point: np.ndarray, origin: np.ndarray) -> np.ndarray:
+        away = point - origin
+        norm = float(np.linalg.norm(away))
+        return point if norm < 1e-6 else point + away / norm * SURE_HAND_SIZE * size
+
+    return [past(grip, points[WRIST]), past(points[INDEX_KNUCKLE], points[PINKY_KNUCKLE]),
+            past(points[PINKY_KNUCKLE], points[INDEX_KNUCKLE]), past(points[THUMB_TIP], points[THUMB_BASE])]
+
+
+def _plausible(piece: np.ndarray, size: float) -> bool:
+    """Whether a cut-out piece may be an object: at least :data:`MIN_OBJECT_HAND_AREA` squared
+    hand sizes of ``size`` [px], at most :data:`MAX_OBJECT_SHARE` of the frame."""
+    return bool(piece.sum() >= MIN_OBJECT_HAND_AREA * size**2 and piece.mean() <= MAX_OBJECT_SHARE)
+
+
+def _carried(frames: np.ndarray, key: int, piece: np.ndarray, grips: np.ndarray, sizes: np.ndarray,
+             tracks: HandTracks, regions: np.ndarray) -> float:
+    """How much ``piece`` (H, W) of frame ``key`` moves with the hand rather than staying, in
+    [-1, 1]: over the frames whose grip lies :data:`CARRIED_HAND_SIZES` or more from the key
+    frame's (at most :data:`CARRIED_FRAMES` on each side), the piece's colour difference when
+    left in place against when shifted with the grip, (stay - carried) / (stay + carried); the
+    better side's median (a hand takes the object after the key frame, or brought it there);
+    0 where the hand never moves that far."""
+    h, w = piece.shape
+    ys, xs = np.nonzero(piece)
+    reference = frames[key][ys, xs].astype(np.float32)
+    sides = []
+    for step in (1, -1):
+        scores = []
+        j = key + step
+        while 0 <= j < len(frames) and len(scores) < CARRIED_FRAMES:
+            shift = grips[j] - grips[key]
+            if np.isfinite(shift).all() and np.linalg.norm(shift) >= CARRIED_HAND_SIZES * sizes[key]:
+                hand = _every_hand(tracks, regions, j)
+                stay = _difference(frames[j], hand, xs, ys, reference)
+                moved = _difference(frames[j], hand, np.round(xs + shift[0]).astype(int), np.round(ys + shift[1]).astype(int),
+                                    reference)
+                if np.isfinite(stay) and np.isfinite(moved) and stay + moved > 0:
+                    scores.append((stay - moved) / (stay + moved))
+            j += step
+        if scores:
+            sides.append(float(np.median(scores)))
+    return max(sides, default=0.0)
+
+
+def _contrast(frame: np.ndarray, piece: np.ndarray, hands: np.ndarray, size: float) -> float:
+    """How much ``piece`` (H, W) stands out from what surrounds it (a ring
+    :data:`SURE_HAND_SIZE` hand sizes wide, off the hands): the distance [CIELAB, 8-bit] of
+    their mean colours. A piece cut out of a uniform surface hardly does."""
+    width = max(3, 2 * int(round(SURE_HAND_SIZE * size)) + 1)
+    ring = cv2.dilate(piece.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (width, width))).astype(bool)
+    ring &= ~piece & ~hands
+    if not ring.any():
+        return 0.0
+    lab = cv2.cvtColor(frame, cv2.COLOR_RGB2LAB).astype(np.float32)
+    return float(np.linalg.norm(lab[piece].mean(axis=0) - lab[ring].mean(axis=0)))
+
+
+def _under_hand(obj: np.ndarray, hands: np.ndarray, grip: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the object ``obj`` with its part hidden by the hand (the hands' pixels
+    within the convex hull of the object and the grip), its largest piece."""
+    ys, xs = np.nonzero(obj)
+    points = np.concatenate([np.stack([xs, ys], axis=1), np.round(grip - 0.5)[None]]).astype(np.int32)
+    hull = np.zeros(obj.shape, dtype=np.uint8)
+    cv2.fillConvexPoly(hull, cv2.convexHull(points), 1)
+    whole = (obj | (hull.astype(bool) & hands)).astype(np.uint8)
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(whole, connectivity=8)
+    return labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+
+
+def _difference(frame: np.ndarray, hand: np.ndarray, xs: np.ndarray, ys: np.ndarray, reference: np.ndarray) -> float:
+    """Mean absolute colour difference [8-bit levels] between ``reference`` (K, 3) and ``frame``
+    at pixels (``xs``, ``ys``) inside the image and off ``hand``; NaN where fewer than half are."""
+    h, w = hand.shape
+    ok = (xs >= 0) & (xs < w) & (ys >= 0) & (ys < h)
+    ok[ok] &= ~hand[ys[ok], xs[ok]]
+    if ok.mean() < 0.5:
+        return float("nan")
+    return float(np.abs(frame[ys[ok], xs[ok]].astype(np.float32) - reference[ok]).mean())
+
+
+def _static_seed(action: str, obj: np.ndarray, points: np.ndarray, edges: tuple[float, float], size: float) -> np.ndarray:
+    """(2,) [px] the static object's seed: half its middle edge past the object's box on the
+    action's side (:data:`_SIDES`; beside: away from the arm)."""
+    ys, xs = np.nonzero(obj)
+    x0, x1, y0, y1 = xs.min(), xs.max() + 1.0, ys.min(), ys.max() + 1.0
+    gap = float(np.clip(0.5 * edges[0], SEED_HAND_SIZES[0] * size, SEED_HAND_SIZES[1] * size))
+    centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
+    if action in ("put_onto", "put_behind"):
+        return np.array([centre[0], y1 + gap])
+    if action == "put_in_front_of":
+        return np.array([centre[0], y0 - gap])
+    arm = centre[0] - points[WRIST, 0] if np.isfinite(points).all() else centre[0] - obj.shape[1] / 2
+    return np.array([x1 + gap if arm >= 0 else x0 - gap, centre[1]])
+
+
+def _inside(point: np.ndarray, image_size: tuple[int, int]) -> bool:
+    """Whether ``point`` (x, y) [px] lies in the image."""
+    return bool(0 <= point[0] < image_size[1] and 0 <= point[1] < image_size[0])
+
+
+def _cut_out(frame: np.ndarray, seed: np.ndarray, size: float, edges: tuple[float, float], not_it: np.ndarray) -> np.ndarray:
+    """(H, W) bool: GrabCut's piece of ``frame`` nearest to ``seed`` (x, y) [px]: surely what lies
+    within :data:`SURE_HAND_SIZE` hand sizes of the seed's nearest pixel outside ``not_it`` (H,
+    W), probably within half its middle edge, surely not farther than :data:`SEARCH_EDGES`
+    longest edges nor in ``not_it``; empty when the probable disc is all ``not_it``."""
+    h, w = not_it.shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    distance = np.hypot(xx + 0.5 - seed[0], yy + 0.5 - seed[1])
+    probable = float(np.clip(0.5 * edges[0], SEED_HAND_SIZES[0] * size, SEED_HAND_SIZES[1] * size))
+    search = max(SEARCH_EDGES * edges[1], size)
+    mask = np.full((h, w), cv2.GC_BGD, dtype=np.uint8)
+    mask[(np.abs(xx + 0.5 - seed[0]) <= search) & (np.abs(yy + 0.5 - seed[1]) <= search)] = cv2.GC_PR_BGD
+    free = np.where(not_it, np.inf, distance)
+    nearest = float(free.min())
+    if nearest > probable:
+        return np.zeros((h, w), dtype=bool)
+    mask[free <= probable] = cv2.GC_PR_FGD
+    mask[free <= nearest + SURE_HAND_SIZE * size] = cv2.GC_FGD
+    mask[not_it] = cv2.GC_BGD
+    if not ((mask == cv2.GC_BGD) | (mask == cv2.GC_PR_BGD)).any():
+        return np.zeros((h, w), dtype=bool)
+    background, foreground = np.zeros((1, 65)), np.zeros((1, 65))
+    cv2.grabCut(cv2.cvtColor(frame, cv2.COLOR_RGB2BGR), mask, None, background, foreground, GRABCUT_ROUNDS,
+                cv2.GC_INIT_WITH_MASK)
+    piece = ((mask == cv2.GC_FGD) | (mask == cv2.GC_PR_FGD)).astype(np.uint8)
+    width = max(1, int(round(SURE_HAND_SIZE * size)))
+    piece = cv2.morphologyEx(piece, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (width, width)))
+    count, labels = cv2.connectedComponents(piece, connectivity=8)
+    if count < 2:
+        return np.zeros((h, w), dtype=bool)
+    free[labels == 0] = np.inf
+    return _filled(labels == labels.flat[int(np.argmin(free))])
+
+
+def _filled(mask: np.ndarray) -> np.ndarray:
+    """(H, W) bool: ``mask`` with its holes filled."""
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    out = np.zeros(mask.shape, dtype=np.uint8)
+    cv2.drawContours(out, contours, -1, 1, thickness=cv2.FILLED)
+    return out.astype(bool)
+
+
+def _polygon(mask: np.ndarray) -> np.ndarray:
+    """(K, 2) float: the largest piece of ``mask`` traced as a polygon [px, continuous]."""
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    contour = max(contours, key=cv2.contourArea)
+    points = cv2.approxPolyDP(contour, POLYGON_TOLERANCE_PX, True).reshape(-1, 2).astype(float) + 0.5
+    if len(points) < 3:  # a sliver: its box
+        x, y, bw, bh = cv2.boundingRect(contour)
+        points = np.array([[x, y], [x + bw, y], [x + bw, y + bh], [x, y + bh]], dtype=float)
+    return points
+
+
+def _rounded(points: np.ndarray) -> list[list[float]]:
+    """A polygon as JSON lists, to 1/100 px."""
+    return [[round(float(x), 2), round(float(y), 2)] for x, y in points]
+
+
+def _picture(frame: np.ndarray, masks: dict[str, np.ndarray], hands: np.ndarray | None, seed: np.ndarray | None,
+             *, seeds: dict[str, tuple[float, float]] | None = None) -> np.ndarray:
+    """(H, W, 3) uint8 RGB: ``frame`` with the hands tinted, each mask outlined in its role's
+    colour and the seeds marked."""
+    out = frame.astype(np.float32)
+    if hands is not None:
+        out[hands] = 0.6 * out[hands] + 0.4 * np.array(HAND_COLOR, dtype=np.float32)
+    out = out.astype(np.uint8)
+    for label, mask in masks.items():
+        contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        cv2.drawContours(out, contours, -1, OBJECT_COLOR if label == OBJECT else STATIC_COLOR, 2)
+    marks = list((seeds or {}).values()) + ([tuple(seed)] if seed is not None else [])
+    for x, y in marks:
+        cv2.drawMarker(out, (int(round(x)), int(round(y))), (255, 255, 0), cv2.MARKER_CROSS, 12, 2)
+    return out
