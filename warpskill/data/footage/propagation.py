@@ -110,9 +110,8 @@ def propagate_masks(
 
 def _in_front(whole: np.ndarray) -> np.ndarray:
     """(L, H, W) whole masks -> visible masks: each pixel to the first label covering it."""
-    covered = np.cumsum(whole, axis=0) > 0
     visible = whole.copy()
-    visible[1:] &= ~covered[:-1]
+    visible[1:] &= ~np.logical_or.accumulate(whole, axis=0)[:-1]
     return visible
 
 
