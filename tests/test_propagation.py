@@ -45,6 +45,17 @@ def test_propagation_keeps_mean_iou_on_a_synthetic_video():
     assert min(ious) > MEAN_IOU, ious
 
 
+def test_a_phone_sized_video_is_followed_on_reduced_frames_as_well():
+    frames, truth = _video()
+    big = np.stack([cv2.resize(frame, None, fx=4, fy=4, interpolation=cv2.INTER_NEAREST) for frame in frames])
+    truth = truth.repeat(4, axis=2).repeat(4, axis=3)  # 384 x 512: the flow runs at 240 x 320
+    key = len(frames) // 2
+    out = propagate_masks(big, key, {"hand": truth[0, key], "object": truth[1, key]})
+    assert out["hand"].shape == truth[0].shape and np.array_equal(out["hand"][key], truth[0, key])
+    ious = [_mean_iou(out[label], truth[i]) for i, label in enumerate(("hand", "object"))]
+    assert min(ious) > MEAN_IOU, ious
+
+
 def test_propagation_rejects_bad_inputs():
     frames, truth = _video(n=3)
     with pytest.raises(ValueError, match="key_frame"):

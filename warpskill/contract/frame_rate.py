@@ -52,7 +52,8 @@ def thinned_contact(contact: np.ndarray, stride: int) -> np.ndarray:
     frame nearest its onset to the kept frame nearest its release (a tie: the wider run).
 
     So no run is lost (a run shorter than the stride keeps one frame) and an onset or a
-    release moves by at most half a stride; off gaps shorter than the stride may close.
+    release moves by at most half a stride (a release in the video's last frames, after the
+    last kept one, to that frame); off gaps shorter than the stride may close.
     """
     contact = np.asarray(contact, dtype=bool)
     out = np.zeros(len(kept_frames(len(contact), stride)), dtype=bool)
