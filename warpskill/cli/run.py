@@ -2,7 +2,9 @@
 
 The steps and what each writes under OUT/:
 
-    prepare    demonstration.npz, demo.png (the contact sheet)
+    prepare    demonstration.npz, demo.png (the contact sheet); without a mask source also
+               outline.json, the outline proposed from the video (docs/formats.md), to correct and
+               give back with --polygons (unsure: only demonstration.unsure.png, what was seen)
     optimize   reconstruction.npz, overlay.gif, top_view.png, trajectories.png (checkpoint.pt meanwhile)
     retarget   plan.npz, plan.csv
     replay     replay.npz
@@ -66,7 +68,7 @@ def _steps(args, clock: common.StepClock) -> int:
     if demo is None:
         redo = True
         with clock.step("prepare"):
-            demo, frames = prepare(args, demo_path, sheet_path)
+            demo, frames = prepare(args, demo_path, sheet_path, out / "outline.json")
     else:
         print(f"prepare: done, skipped ({demo_path}, {sheet_path})")
     stride = frame_stride(demo.fps)

@@ -199,7 +199,7 @@ def propose_outline(frames: np.ndarray, action: str, *, fps: float, object_noun:
     _check_one_grip(tracks, key, frames[key], hands, what)
     nouns = {OBJECT: object_noun} if object_noun else {}
     edges = _edges_px(object_noun, DEFAULT_OBJECT_EDGES, size)
-    pieces = [(seed, piece) for seed in _object_seeds(landmarks[key], grip, size)
+    pieces = [(seed, piece) for seed in _object_seeds(landmarks[key], regions[key], grip, size)
               if _plausible(piece := _cut_out(frames[key], seed, size, edges, hands), size)]
     if not pieces:
         raise OutlineUnsure(f"frame {key}: nothing told apart at the hand's fingertips: outline {what} on one frame "
@@ -251,20 +251,25 @@ _SIDES = {"put_onto": "below", "put_behind": "in front of", "put_in_front_of": "
 
 
 def _grips(landmarks: np.ndarray, regions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(N, 2) the chosen hand's grip (its fingertips' centre; a colour-and-motion region's point
-    farthest into the image) [px] and (N,) its size [px]; NaN where no hand is seen."""
+    """(N, 2) the chosen hand's grip [px] (its fingertips' centre; for a colour-and-motion
+    region, its point farthest from where it enters the image: the arm comes from outside)
+    and (N,) its size [px] (a region's: the landmark hands' median, else half the square root
+    of its area); NaN where no hand is seen."""
     n = len(landmarks)
-    grips = np.nanmean(landmarks[:, list(FINGERTIPS)], axis=1) if n else np.zeros((0, 2))
+    grips = landmarks[:, list(FINGERTIPS)].mean(axis=1)
     sizes = hand_size(landmarks)
     known = np.isfinite(sizes)
     typical = float(np.median(sizes[known])) if known.any() else np.nan
     for k in np.flatnonzero(~known & regions.reshape(n, -1).any(axis=1)):
-        inside = cv2.distanceTransform(np.pad(regions[k], 1).astype(np.uint8), cv2.DIST_L2, 3)[1:-1, 1:-1]
-        border = cv2.distanceTransform(np.pad(np.ones_like(regions[k], np.uint8), 1, constant_values=0),
-                                       cv2.DIST_L2, 3)[1:-1, 1:-1]
-        y, x = np.unravel_index(np.argmax(np.where(regions[k], border + 0.01 * inside, -1.0)), regions[k].shape)
+        region = regions[k]
+        entry = np.zeros_like(region)
+        entry[[0, -1], :], entry[:, [0, -1]] = region[[0, -1], :], region[:, [0, -1]]
+        if not entry.any():
+            continue
+        reach = cv2.distanceTransform((~entry).astype(np.uint8), cv2.DIST_L2, 3)
+        y, x = np.unravel_index(np.argmax(np.where(region, reach, -1.0)), region.shape)
         grips[k] = (x + 0.5, y + 0.5)
-        sizes[k] = typical if np.isfinite(typical) else 0.5 * np.sqrt(regions[k].sum())
+        sizes[k] = typical if np.isfinite(typical) else 0.5 * np.sqrt(region.sum())
     return grips, sizes
 
 
@@ -322,17 +327,20 @@ def _edges_px(noun: str | None, default: tuple[float, float], size: float) -> tu
     return middle * size / HAND_BREADTH, longest * size / HAND_BREADTH
 
 
-def _object_seeds(points: np.ndarray, grip: np.ndarray, size: float) -> list[np.ndarray]:
+def _object_seeds(points: np.ndarray, region: np.ndarray, grip: np.ndarray, size: float) -> list[np.ndarray]:
     """(2,) [px] seeds where the object may be: past the fingertips (what a finger presses or
     pokes), past the index and the little finger's knuckles and past the thumb (what the fist
-    holds sticks out at its sides); the grip alone for a hand found only as a region."""
-    if not np.isfinite(points).all():
-        return [grip]
+    holds sticks out at its sides); for a hand found only as a ``region`` (H, W), past its
+    grip away from the region's centre."""
 
     def past(point: np.ndarray, origin: np.ndarray) -> np.ndarray:
         away = point - origin
         norm = float(np.linalg.norm(away))
         return point if norm < 1e-6 else point + away / norm * SURE_HAND_SIZE * size
+
+    if not np.isfinite(points).all():
+        ys, xs = np.nonzero(region)
+        return [past(grip, np.array([xs.mean() + 0.5, ys.mean() + 0.5]))]
 
     return [past(grip, points[WRIST]), past(points[INDEX_KNUCKLE], points[PINKY_KNUCKLE]),
             past(points[PINKY_KNUCKLE], points[INDEX_KNUCKLE]), past(points[THUMB_TIP], points[THUMB_BASE])]

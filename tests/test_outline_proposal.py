@@ -1,0 +1,144 @@
+"""The outline proposed from a clip without any mask source: on a rendered clip whose object and
+static object are known, a clip without a hand refused with its picture, and the outline
+file's round trip.
+
+The rendered hand is a skin-coloured arm coming in from the image's border: MediaPipe finds no
+hand in a drawing, so the footage path finds it by colour and motion
+(:func:`warpskill.data.footage.hand_regions.hand_regions`), as it does for a real hand it misses.
+"""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from warpskill.data.readers.polygons import read_polygons
+
+pytest.importorskip("mediapipe")
+
+H, W, FPS = 120, 160, 12.0
+OBJECT_REST, OBJECT_PLACED = (36, 44), (106, 50)  # the object's top-left corner (x, y) [px] before and after
+OBJECT_SIZE = (24, 18)  # (width, height) [px]
+STATIC_BOX = (96, 68, 150, 112)  # x0, y0, x1, y1 [px]: the box the object is put onto
+
+
+def _texture(rng, colour, spread=30.0):
+    """(H, W, 3) float: noise about ``colour``, blurred (corners to follow)."""
+    noise = rng.normal(0.0, spread, (H, W, 3)).astype(np.float32)
+    return np.asarray(colour, np.float32) + cv2.GaussianBlur(noise, (0, 0), 1.5)
+
+
+def _render(with_hand=True, seed=0):
+    """A put_onto clip: a blue box resting on a grey table is taken by a skin-coloured arm from
+    the left, carried onto a green box and left there; the arm withdraws.
+
+    Returns:
+        (N, H, W, 3) uint8 frames, (N, H, W) bool true object masks, (H, W) bool static mask.
+    """
+    rng = np.random.default_rng(seed)
+    table, box, thing, skin = (_texture(rng, c) for c in ((120, 125, 130), (60, 150, 70), (50, 70, 200), (215, 160, 130)))
+    # the object's path: at rest, carried (frames 16-25), at rest on the box
+    steps = np.concatenate([np.zeros(16), np.linspace(0.0, 1.0, 10), np.ones(18)])
+    corners = np.array(OBJECT_REST) + steps[:, None] * (np.array(OBJECT_PLACED) - OBJECT_REST)
+    # the fingertip at the object's left side, coming up from below (frames 8-13), withdrawing (frames 30-35)
+    grip = corners + [0.0, OBJECT_SIZE[1] / 2]
+    k = np.arange(len(steps))
+    reach = np.clip((k - 8) / 6.0, 0.0, 1.0) * np.clip((35 - k) / 6.0, 0.0, 1.0)
+    tips = grip + (1.0 - reach)[:, None] * [0.0, H + 10 - grip[0, 1]]
+    frames, masks = [], []
+    ys, xs = np.mgrid[0:H, 0:W]
+    static = (xs >= STATIC_BOX[0]) & (xs < STATIC_BOX[2]) & (ys >= STATIC_BOX[1]) & (ys < STATIC_BOX[3])
+    for (x, y), tip in zip(corners, tips):
+        frame = table.copy()
+        frame[static] = box[static]
+        obj = (xs >= x) & (xs < x + OBJECT_SIZE[0]) & (ys >= y) & (ys < y + OBJECT_SIZE[1])
+        shift = np.float32([[1, 0, x - OBJECT_REST[0]], [0, 1, y - OBJECT_REST[1]]])
+        frame[obj] = cv2.warpAffine(thing, shift, (W, H), borderMode=cv2.BORDER_REFLECT)[obj]
+        if with_hand and tip[1] < H:
+            arm = np.zeros((H, W), np.uint8)
+            cv2.line(arm, (int(tip[0]) - 90, H + 20), (int(tip[0]) - 4, int(tip[1])), 1, thickness=16)
+            arm = arm.astype(bool)
+            frame[arm] = skin[arm]
+            obj &= ~arm
+        frames.append(np.clip(frame, 0, 255).astype(np.uint8))
+        masks.append(obj)
+    return np.stack(frames), np.stack(masks), static
+
+
+def _iou(a, b):
+    return (a & b).sum() / max((a | b).sum(), 1)
+
+
+def test_the_object_taken_and_the_box_it_is_put_onto_are_outlined():
+    from warpskill.data.footage.outline_proposal import propose_outline
+
+    frames, objects, static = _render()
+    proposal = propose_outline(frames, "put_onto", fps=FPS, object_noun="box")
+    masks = proposal.masks()
+    assert sorted(masks) == ["object", "static_0"] and proposal.nouns == {"object": "box"}
+    assert _iou(masks["object"], objects[proposal.frame]) > 0.6
+    assert _iou(masks["static_0"], static & ~objects[proposal.frame]) > 0.6
+    assert proposal.regions[proposal.frame].any()  # the drawn arm, found by colour and motion
+
+
+def test_the_outline_file_round_trip(tmp_path):
+    from warpskill.data.footage.outline_proposal import propose_outline, write_outline
+
+    frames, _, _ = _render()
+    proposal = propose_outline(frames, "put_onto", fps=FPS, object_noun="box", static_noun="crate")
+    write_outline(proposal, tmp_path / "outline.json")
+    assert set(json.loads((tmp_path / "outline.json").read_text())) == {"frame", "object", "static", "object_noun"}
+    outline = read_polygons(tmp_path / "outline.json", (H, W))
+    assert outline.frame == proposal.frame and outline.object_noun == "box"
+    for label, mask in proposal.masks().items():
+        assert (outline.masks[label] == mask).all()
+
+
+def _clip_files(folder, frames):
+    """``frames`` written as numbered PNG files in ``folder``; their pattern."""
+    folder.mkdir()
+    for k, frame in enumerate(frames):
+        cv2.imwrite(str(folder / f"{k + 1:04d}.png"), cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
+    return str(folder / "%04d.png")
+
+
+def test_prepare_without_a_mask_source_keeps_the_outline_it_proposed(tmp_path, capsys):
+    from warpskill.cli import main
+    from warpskill.contract import Demonstration
+
+    video = _clip_files(tmp_path / "frames", _render()[0])
+    status = main(["prepare", video, "--action", "put_onto", "--object-noun", "box", "-o", str(tmp_path / "demo.npz")])
+    assert status == 0
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["demo.npz", "demo.outline.json", "demo.png", "frames"]
+    assert "masks from the proposed outline" in capsys.readouterr().out
+    proposed = Demonstration.load(tmp_path / "demo.npz")
+    assert proposed.num_static == 1 and proposed.object_noun == "box" and proposed.contact.any()
+    # the kept outline given back as --polygons makes the same demonstration
+    status = main(["prepare", video, "--polygons", str(tmp_path / "demo.outline.json"), "--action", "put_onto",
+                   "-o", str(tmp_path / "again.npz")])
+    again = Demonstration.load(tmp_path / "again.npz")
+    assert status == 0 and (again.object_mask == proposed.object_mask).all()
+    assert (again.static_mask == proposed.static_mask).all() and (again.contact == proposed.contact).all()
+
+
+def test_a_clip_where_no_hand_takes_anything_is_refused_with_its_picture(tmp_path, capsys):
+    from warpskill.cli import main
+
+    video = _clip_files(tmp_path / "frames", _render(with_hand=False)[0])
+    out = tmp_path / "out"
+    status = main(["prepare", video, "--action", "put_onto", "-o", str(out / "demo.npz")])
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1, err
+    assert "no hand in any of the 44 frames: outline the object and the static object on one frame" in err
+    assert sorted(path.name for path in out.iterdir()) == ["demo.unsure.png"]
+    assert cv2.imread(str(out / "demo.unsure.png")).shape == (H, W, 3)
+
+
+def test_a_static_noun_for_an_action_without_a_static_object_is_refused():
+    from warpskill.contract import DemonstrationError
+    from warpskill.data.footage.outline_proposal import propose_outline
+
+    frames, _, _ = _render()
+    with pytest.raises(DemonstrationError, match="static_noun: pick_up has no static object"):
+        propose_outline(frames[:2], "pick_up", fps=FPS, static_noun="box")
