@@ -6,8 +6,9 @@ chosen per frame and its mask (:mod:`.hands`), the outlined objects followed
 (:mod:`.following`) with the sparse corners and every tracking setting
 (:mod:`.tracking`), the contact read off the fingertips (:mod:`.touch`), the model hand
 drawn along the found hand (:mod:`.model_hand`), the stages chained (:mod:`.clip_masks`),
-and, for an outline that includes the hand, its propagation by dense optical flow
-(:mod:`.propagation`). May import :mod:`warpskill.contract`, the nouns leaf (a hand's
+for an outline that includes the hand, its propagation by dense optical flow
+(:mod:`.propagation`), and, without any outline, the outline proposed from the clip
+(:mod:`.outline_proposal`). May import :mod:`warpskill.contract`, the nouns leaf (a hand's
 size), the readers and the shared steps of :mod:`warpskill.data`; never the box
 annotations (:mod:`warpskill.data.boxes`) or the recording.
 """
