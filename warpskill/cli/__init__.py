@@ -16,6 +16,7 @@
     warpskill export lerobot OUT RECON... [--episodes N]
                                                   successful rollouts in random layouts as a LeRobot dataset
     warpskill view OUT [-o SCENE.rrd] [--serve]   a Rerun recording of a results folder (3D scene)
+    warpskill app [-o DIR] [--port N]             a local web page: upload, outline, run, see the results
     warpskill bench kernels [--device cpu|cuda]   Warp kernel microbenchmarks
     warpskill bench speed [--device cpu|cuda]     Warp engine vs plain-Torch reference, per iteration
     warpskill bench synthetic [--seeds N]         the paper's success table on synthetic data
@@ -35,7 +36,7 @@ import logging
 import os
 import sys
 
-from warpskill.cli import bench, export, pipeline, prepare, robot, run, view
+from warpskill.cli import app, bench, export, pipeline, prepare, robot, run, view
 from warpskill.cli.common import Refused
 from warpskill.contract import ResultsFolderError
 
@@ -110,6 +111,6 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--torch-threads", type=_positive, metavar="N",
                         help="Torch's CPU threads (default: 1, or OMP_NUM_THREADS where set); before the command")
     commands = parser.add_subparsers(title="commands")
-    for module in (pipeline, prepare, run, robot, export, bench, view):
+    for module in (pipeline, prepare, run, robot, export, bench, view, app):
         module.register(commands)
     return parser

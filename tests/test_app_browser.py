@@ -1,0 +1,195 @@
+"""``warpskill app`` in a headless Chromium: upload a clip's frames, box the object with two clicks,
+run, and find the robot's replay and the results' zip on the page.
+
+The clip is rendered here (:mod:`warpskill.synthetic.footage`: a synthetic pick-up, textured)
+and uploaded as its frames. Needs Gradio and Selenium (extra ``test``) and the OS's
+``chromium`` and ``chromedriver`` (``.ci/run`` installs them); skipped without them.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import shutil
+import socket
+import time
+import urllib.request
+import zipfile
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from warpskill.app import files, outline
+from warpskill.contract import Demonstration
+from warpskill.data import read_polygons
+from warpskill.synthetic import make_demonstration
+from warpskill.synthetic.footage import clip_outline, textured_frames
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+CHROMEDRIVER = shutil.which("chromedriver")
+RUN_TIMEOUT_S = 300.0
+KEY_FRAME = 6  # the frame outlined for the run: the hand and the box both in view
+
+
+# ----------------------------------------------------------------------------- without a browser
+
+
+def test_a_box_from_two_corners_is_the_polygon_the_run_reads(tmp_path):
+    drawn = outline.with_box(outline.draft(3), "object", (30.5, 20.5), (10.5, 5.5))
+    drawn = outline.with_box(drawn, "static_1", (2.5, 2.5), (8.5, 6.5))  # past the last static object: added
+    path = tmp_path / "outline.json"
+    path.write_text(outline.outline_text(drawn))
+    read = read_polygons(path, (40, 50))
+    assert read.frame == 3 and list(read.masks) == ["object", "static_0"]
+    # corners at pixel centres: the box holds both corner pixels (docs/formats.md: (0, 0) the image's corner)
+    assert read.masks["object"].sum() == 21 * 16 and read.masks["static_0"].sum() == 7 * 5
+    assert "object" not in outline.remove_role(drawn, "object") and outline.remove_role(drawn, "static_0")["static"] == []
+    picture = outline.draw_outline(np.zeros((40, 50, 3), np.uint8), drawn, pending=(45.5, 35.5))
+    assert picture[12, 20].any() and not picture[30, 5].any()  # in the object's box, outside every box
+    assert picture[35, 42].all() and not picture[34, 42].any()  # the pending corner's cross, centred on its pixel
+    with pytest.raises(ValueError, match="frame"):
+        outline.parse_outline('{"object": []}')
+
+
+def test_a_clip_is_one_video_or_several_frames(tmp_path):
+    images = []
+    for k in range(3):
+        images.append(tmp_path / f"shot_{k}.jpg")
+        cv2.imwrite(str(images[-1]), np.full((8, 10, 3), 60 * k, np.uint8))
+    clip = files.store_clip(images[::-1], tmp_path / "page")
+    frames, fps = files.clip_frames(clip)
+    assert clip.name == "%04d.png" and frames.shape == (3, 8, 10, 3) and fps == files.FRAMES_FPS
+    assert abs(int(frames[2, 0, 0, 0]) - 120) <= 2  # in the order of the names
+    assert files.new_folder(files.clip_folder(clip), "run").name == "run-1"
+    with pytest.raises(ValueError, match="one video file or several images"):
+        files.store_clip(images[:1], tmp_path / "page")
+
+
+# ----------------------------------------------------------------------------- in the browser
+
+
+@pytest.fixture
+def browser():
+    if CHROMIUM is None or CHROMEDRIVER is None:
+        pytest.skip("needs chromium and chromedriver from the OS (apt-get install chromium chromium-driver)")
+    pytest.importorskip("gradio", reason="needs Gradio: pip install -e '.[app]'")
+    webdriver = pytest.importorskip("selenium.webdriver", reason="needs Selenium: pip install -e '.[test]'")
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    for argument in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1400,1800"):
+        options.add_argument(argument)
+    driver = webdriver.Chrome(options=options, service=webdriver.ChromeService(executable_path=CHROMEDRIVER))
+    driver.set_script_timeout(30)
+    yield driver
+    driver.quit()
+
+
+@pytest.fixture
+def page(tmp_path):
+    os.environ.setdefault("GRADIO_ANALYTICS_ENABLED", "False")
+    from warpskill.app import serve
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    served = serve(tmp_path / "page", port=port, block=False)
+    yield f"http://127.0.0.1:{port}/", tmp_path / "page"
+    served.close()
+
+
+def _wait(driver, condition, timeout: float, what: str):
+    """Poll ``condition(driver)`` until it returns something true; fail naming ``what``."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        found = condition(driver)
+        if found:
+            return found
+        error = _text(driver, '[data-testid="toast-body"].error')
+        if error:
+            raise AssertionError(f"page: an error while waiting for {what}: {error!r}")
+        time.sleep(0.25)
+    raise AssertionError(f"page: no {what} after {timeout:g} s; status: {_text(driver, '#status')!r}")
+
+
+def _text(driver, selector: str) -> str:
+    return driver.execute_script(f"const e = document.querySelector('{selector}'); return e ? e.innerText : '';")
+
+
+def _outline_text(driver) -> str:
+    return driver.execute_script("return document.querySelector('#outline textarea').value;")
+
+
+def _type_into(driver, selector: str, value: str) -> None:
+    """Set an input's value as typing does (Gradio listens to input events)."""
+    driver.execute_script(
+        "const e = document.querySelector(arguments[0]);"
+        "const proto = e.tagName === 'TEXTAREA' ? HTMLTextAreaElement.prototype : HTMLInputElement.prototype;"
+        "Object.getOwnPropertyDescriptor(proto, 'value').set.call(e, arguments[1]);"
+        "e.dispatchEvent(new Event('input', {bubbles: true})); e.dispatchEvent(new Event('change', {bubbles: true}));"
+        "e.dispatchEvent(new Event('blur'));", selector, value)
+
+
+def _click_pixel(driver, image, x: float, y: float) -> None:
+    """Click the shown frame at its pixel (x, y) [px of the frame]."""
+    from selenium.webdriver import ActionChains
+
+    natural = driver.execute_script("return [arguments[0].naturalWidth, arguments[0].naturalHeight];", image)
+    size = image.size
+    dx, dy = (x + 0.5) * size["width"] / natural[0], (y + 0.5) * size["height"] / natural[1]
+    ActionChains(driver).move_to_element_with_offset(image, dx - size["width"] / 2, dy - size["height"] / 2).click().perform()
+
+
+@pytest.mark.slow
+def test_the_page_runs_an_uploaded_clip_to_the_robots_replay(browser, page, tmp_path):
+    from selenium.webdriver.common.by import By
+
+    start = time.perf_counter()
+    url, root = page
+    truth = make_demonstration("pick_up", seed=1, image_size=(96, 128), duration=2.0, noise="none")
+    frames = textured_frames(truth)
+    uploads = []
+    for k, frame in enumerate(frames):
+        uploads.append(tmp_path / f"frame_{k:04d}.png")
+        cv2.imwrite(str(uploads[-1]), cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
+
+    browser.get(url)
+    _wait(browser, lambda d: d.find_elements(By.CSS_SELECTOR, "#clip input[type=file]"), 30, "clip upload")
+    browser.find_element(By.CSS_SELECTOR, "#clip input[type=file]").send_keys("\n".join(map(str, uploads)))
+    middle = len(frames) // 2
+    _wait(browser, lambda d: f'"frame": {middle}' in _outline_text(d), 60, "draft outline on the middle frame")
+    image = _wait(browser, lambda d: d.execute_script(
+        "const e = document.querySelector('#preview img'); return e && e.naturalWidth > 0 ? e : null;"),
+        30, "frame to outline")
+
+    ys, xs = np.nonzero(truth.object_mask[middle])
+    _click_pixel(browser, image, xs.min(), ys.min())  # the object's box: its corner pixels
+    _click_pixel(browser, image, xs.max(), ys.max())
+    boxed = _wait(browser, lambda d: '"object"' in _outline_text(d) and _outline_text(d), 30, "boxed object")
+    x0, y0, x1, y1 = xs.min() + 0.5, ys.min() + 0.5, xs.max() + 0.5, ys.max() + 0.5
+    assert np.allclose(json.loads(boxed)["object"], [[x0, y0], [x1, y0], [x1, y1], [x0, y1]], atol=1.0), boxed
+
+    drawn = clip_outline(truth, KEY_FRAME)  # the hand too: no MediaPipe hand on a synthetic clip
+    _type_into(browser, "#outline textarea", outline.outline_text(drawn))
+    _type_into(browser, "#iterations input", "10")
+    browser.find_element(By.CSS_SELECTOR, "#run").click()
+
+    video_element = _wait(browser, lambda d: d.find_elements(By.CSS_SELECTOR, "#replay video[src], #replay_picture img"),
+                          RUN_TIMEOUT_S, "robot replay")[0]
+    assert "finished; pick_up: success" in _text(browser, "#status")
+    source = video_element.get_attribute("src")
+    with urllib.request.urlopen(source) as response:
+        replay = response.read()
+    assert len(replay) > 10_000 and (replay[4:8] == b"ftyp" or replay[:4] == b"\x89PNG")  # an MP4, or the paths plot
+
+    [run] = root.glob("*/run-1")
+    assert json.loads((run / "outline.json").read_text()) == json.loads(outline.outline_text(drawn))  # as shown
+    demo = Demonstration.load(run / "demonstration.npz")
+    assert demo.num_frames == len(frames) and demo.fps == files.FRAMES_FPS
+    link = _wait(browser, lambda d: d.find_elements(By.CSS_SELECTOR, "#results a[href]"), 10, "results zip")[0]
+    with urllib.request.urlopen(link.get_attribute("href")) as response:
+        names = zipfile.ZipFile(io.BytesIO(response.read())).namelist()
+    assert {"run-1/reconstruction.npz", "run-1/replay.npz", "run-1/outline.json"} <= set(names), names
+    print(f"page: upload to replay in {time.perf_counter() - start:.1f} s")
