@@ -111,7 +111,10 @@ def propagate_masks(
 def _in_front(whole: np.ndarray) -> np.ndarray:
     """(L, H, W) whole masks -> visible masks: each pixel to the first label covering it."""
     visible = whole.copy()
-    visible[1:] &= ~np.logical_or.accumulate(whole, axis=0)[:-1]
+    covered = whole[0].copy()
+    for mask, seen in zip(whole[1:], visible[1:]):
+        seen &= ~covered
+        covered |= mask
     return visible
 
 
