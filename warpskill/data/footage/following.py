@@ -42,6 +42,10 @@ from warpskill.data.footage.tracking import (
     carried_corners,
 )
 
+FOLLOW_SIDE = 240
+"""Objects are followed on frames reduced until their shorter side has this many px (the real
+clips' size, for which the px settings here are made), the key outlines then moved at full size."""
+
 EDGE_PX = 2
 """Corners this close [px] to a label's edge or the occluder are not tracked (they mix
 the label with what surrounds it)."""
@@ -172,18 +176,52 @@ def follow_outlines(
             raise ValueError(f"carried[{label!r}]: expected a label of key_masks and (N,) = ({n},) bool frames")
         held[labels.index(label)] = np.asarray(frames_held, dtype=bool)
     gray = np.stack([cv2.cvtColor(frame, cv2.COLOR_RGB2GRAY) for frame in frames])
+    if min(h, w) > FOLLOW_SIDE:  # followed on reduced frames, the outlines moved at full size
+        size = (round(w * FOLLOW_SIDE / min(h, w)), round(h * FOLLOW_SIDE / min(h, w)))  # (width, height)
+        small = np.stack([_reduced(mask, size, 0.5 if _reduced(mask, size, 0.5).any() else 0.0) for mask in key])
+        hidden = np.stack([_reduced(mask, size, 0.0) for mask in occluder])
+        gray = np.stack([cv2.resize(image, size, interpolation=cv2.INTER_AREA) for image in gray])
+        transforms = _enlarged(_transforms(gray, key_frame, small, hidden, held), (h, w), size)
+        transforms[:, key_frame] = np.eye(2, 3)  # the outline itself where it was drawn
+    else:
+        transforms = _transforms(gray, key_frame, key, occluder, held)
+    return {label: np.stack([_warp(key[i], transforms[i, k]) for k in range(n)]) for i, label in enumerate(labels)}
+
+
+def _reduced(mask: np.ndarray, size: tuple[int, int], share: float) -> np.ndarray:
+    """An (H, W) bool mask reduced to ``size`` (width, height) by area: the pixels more than
+    ``share`` covered (0: any part; a key outline too thin to cover half a pixel anywhere)."""
+    return cv2.resize(mask.astype(np.float32), size, interpolation=cv2.INTER_AREA) > share
+
+
+def _enlarged(transforms: np.ndarray, image_size: tuple[int, int], size: tuple[int, int]) -> np.ndarray:
+    """(..., 2, 3) transforms between reduced frames of ``size`` (width, height) as the same
+    motions between the (H, W) frames (pixel centres mapped as ``cv2.resize`` maps them)."""
+    (h, w), (width, height) = image_size, size
+    sx, sy = width / w, height / h
+    reduce = np.array([[sx, 0, 0.5 * sx - 0.5], [0, sy, 0.5 * sy - 0.5], [0, 0, 1]])
+    square = np.zeros((*transforms.shape[:-2], 3, 3))
+    square[..., :2, :], square[..., 2, 2] = transforms, 1
+    return (np.linalg.inv(reduce) @ square @ reduce)[..., :2, :]
+
+
+def _transforms(gray: np.ndarray, key_frame: int, key: np.ndarray, occluder: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """(L, N, 2, 3) each label's similarity from the key frame to every frame (see the module
+    docstring), from the (N, H, W) grey frames, the (L, H, W) key masks, the (N, H, W) occluder
+    and the (L, N) frames in which each label is held."""
+    n = len(gray)
     templates = [_template(gray[key_frame], mask) for mask in key]
-    transforms = np.zeros((len(labels), n, 2, 3))
+    transforms = np.zeros((len(key), n, 2, 3))
     transforms[:, key_frame] = np.eye(2, 3)
     for step in (1, -1):
-        recent = [[] for _ in labels]  # each label's last own shifts, for coasting
+        recent = [[] for _ in key]  # each label's last own shifts, for coasting
         for k in range(key_frame + step, n if step > 0 else -1, step):
             before = transforms[:, k - step]
             whole = np.stack([_warp(mask, t) for mask, t in zip(key, before)])
             background = _background_motion(gray[k - step], gray[k], whole, occluder[k - step])
             hand = None  # the occluder's own motion, fitted when a held label needs it
             hidden = occluder[k - step].copy()
-            for i in range(len(labels)):
+            for i in range(len(key)):
                 visible = whole[i] & ~hidden
                 hidden |= whole[i]
                 motion = _label_motion(gray[k - step], gray[k], visible, occluder[k - step] | occluder[k])
@@ -200,7 +238,7 @@ def follow_outlines(
                 if templates[i] is not None:
                     t = _refound(gray[k], t, templates[i], occluder[k])
                 transforms[i, k] = t
-    return {label: np.stack([_warp(key[i], transforms[i, k]) for k in range(n)]) for i, label in enumerate(labels)}
+    return transforms
 
 
 def _checked(frames, key_frame, key_masks, occluder):
