@@ -7,6 +7,7 @@ hand in a drawing, so the footage path finds it by colour and motion
 (:func:`warpskill.data.footage.hand_regions.hand_regions`), as it does for a real hand it misses.
 """
 
+import functools
 import json
 
 import cv2
@@ -18,9 +19,14 @@ from warpskill.data.readers.polygons import read_polygons
 pytest.importorskip("mediapipe")
 
 H, W, FPS = 120, 160, 12.0
-OBJECT_REST, OBJECT_PLACED = (36, 44), (106, 50)  # the object's top-left corner (x, y) [px] before and after
+OBJECT_REST = (36, 44)  # the object's top-left corner (x, y) [px] before it is taken
 OBJECT_SIZE = (24, 18)  # (width, height) [px]
-STATIC_BOX = (96, 68, 150, 112)  # x0, y0, x1, y1 [px]: the box the object is put onto
+SCENES = {  # action -> where the object is set (its top-left corner) and the static box (x0, y0, x1, y1) [px]
+    "put_onto": ((106, 50), (96, 68, 150, 112)),
+    "put_next_to": ((96, 60), (126, 44, 156, 96)),
+    "put_in_front_of": ((100, 62), (92, 14, 146, 60)),
+    "pick_up": ((70, 12), None),
+}
 
 
 def _texture(rng, colour, spread=30.0):
@@ -29,18 +35,20 @@ def _texture(rng, colour, spread=30.0):
     return np.asarray(colour, np.float32) + cv2.GaussianBlur(noise, (0, 0), 1.5)
 
 
-def _render(with_hand=True, seed=0):
-    """A put_onto clip: a blue box resting on a grey table is taken by a skin-coloured arm from
-    the left, carried onto a green box and left there; the arm withdraws.
+def _render(action="put_onto", with_hand=True, seed=0):
+    """A clip of ``action`` (:data:`SCENES`): a blue box resting on a grey table is taken by a
+    skin-coloured arm coming in from below, carried onto (beside, in front of) a green box or
+    lifted, and left there; the arm withdraws.
 
     Returns:
         (N, H, W, 3) uint8 frames, (N, H, W) bool true object masks, (H, W) bool static mask.
     """
+    placed, static_box = SCENES[action]
     rng = np.random.default_rng(seed)
     table, box, thing, skin = (_texture(rng, c) for c in ((120, 125, 130), (60, 150, 70), (50, 70, 200), (215, 160, 130)))
     # the object's path: at rest, carried (frames 16-25), at rest on the box
     steps = np.concatenate([np.zeros(16), np.linspace(0.0, 1.0, 10), np.ones(18)])
-    corners = np.array(OBJECT_REST) + steps[:, None] * (np.array(OBJECT_PLACED) - OBJECT_REST)
+    corners = np.array(OBJECT_REST) + steps[:, None] * (np.array(placed) - OBJECT_REST)
     # the fingertip at the object's left side, coming up from below (frames 8-13), withdrawing (frames 30-35)
     grip = corners + [0.0, OBJECT_SIZE[1] / 2]
     k = np.arange(len(steps))
@@ -48,7 +56,9 @@ def _render(with_hand=True, seed=0):
     tips = grip + (1.0 - reach)[:, None] * [0.0, H + 10 - grip[0, 1]]
     frames, masks = [], []
     ys, xs = np.mgrid[0:H, 0:W]
-    static = (xs >= STATIC_BOX[0]) & (xs < STATIC_BOX[2]) & (ys >= STATIC_BOX[1]) & (ys < STATIC_BOX[3])
+    static = np.zeros((H, W), dtype=bool)
+    if static_box is not None:
+        static = (xs >= static_box[0]) & (xs < static_box[2]) & (ys >= static_box[1]) & (ys < static_box[3])
     for (x, y), tip in zip(corners, tips):
         frame = table.copy()
         frame[static] = box[static]
@@ -66,27 +76,38 @@ def _render(with_hand=True, seed=0):
     return np.stack(frames), np.stack(masks), static
 
 
+@functools.lru_cache(maxsize=None)
+def _proposed(action):
+    """The rendered clip of ``action``, its true masks and the outline proposed on it (the
+    object named a box, the static object a crate)."""
+    from warpskill.contract.actions import has_static_object
+    from warpskill.data.footage.outline_proposal import propose_outline
+
+    frames, objects, static = _render(action)
+    noun = "crate" if has_static_object(action) else None
+    return frames, objects, static, propose_outline(frames, action, fps=FPS, object_noun="box", static_noun=noun)
+
+
 def _iou(a, b):
     return (a & b).sum() / max((a | b).sum(), 1)
 
 
-def test_the_object_taken_and_the_box_it_is_put_onto_are_outlined():
-    from warpskill.data.footage.outline_proposal import propose_outline
-
-    frames, objects, static = _render()
-    proposal = propose_outline(frames, "put_onto", fps=FPS, object_noun="box")
+@pytest.mark.parametrize("action", list(SCENES))
+def test_the_object_taken_and_the_box_it_is_set_by_are_outlined(action):
+    _, objects, static, proposal = _proposed(action)
     masks = proposal.masks()
-    assert sorted(masks) == ["object", "static_0"] and proposal.nouns == {"object": "box"}
+    assert sorted(masks) == ["object"] + ["static_0"] * int(static.any())
+    assert proposal.nouns == {"object": "box", **({"static_0": "crate"} if static.any() else {})}
     assert _iou(masks["object"], objects[proposal.frame]) > 0.6
-    assert _iou(masks["static_0"], static & ~objects[proposal.frame]) > 0.6
+    if static.any():
+        assert _iou(masks["static_0"], static & ~objects[proposal.frame]) > 0.6
     assert proposal.regions[proposal.frame].any()  # the drawn arm, found by colour and motion
 
 
 def test_the_outline_file_round_trip(tmp_path):
-    from warpskill.data.footage.outline_proposal import propose_outline, write_outline
+    from warpskill.data.footage.outline_proposal import write_outline
 
-    frames, _, _ = _render()
-    proposal = propose_outline(frames, "put_onto", fps=FPS, object_noun="box", static_noun="crate")
+    proposal = _proposed("put_onto")[-1]
     write_outline(proposal, tmp_path / "outline.json")
     assert set(json.loads((tmp_path / "outline.json").read_text())) == {"frame", "object", "static", "object_noun"}
     outline = read_polygons(tmp_path / "outline.json", (H, W))
@@ -108,12 +129,14 @@ def test_prepare_without_a_mask_source_keeps_the_outline_it_proposed(tmp_path, c
     from warpskill.contract import Demonstration
 
     video = _clip_files(tmp_path / "frames", _render()[0])
-    status = main(["prepare", video, "--action", "put_onto", "--object-noun", "box", "-o", str(tmp_path / "demo.npz")])
+    status = main(["prepare", video, "--action", "put_onto", "--object-noun", "box", "--static-noun", "crate",
+                   "-o", str(tmp_path / "demo.npz")])
     assert status == 0
     assert sorted(path.name for path in tmp_path.iterdir()) == ["demo.npz", "demo.outline.json", "demo.png", "frames"]
     assert "masks from the proposed outline" in capsys.readouterr().out
     proposed = Demonstration.load(tmp_path / "demo.npz")
-    assert proposed.num_static == 1 and proposed.object_noun == "box" and proposed.contact.any()
+    assert proposed.num_static == 1 and proposed.contact.any()
+    assert proposed.object_noun == "box" and tuple(proposed.static_nouns) == ("crate",)
     # the kept outline given back as --polygons makes the same demonstration
     status = main(["prepare", video, "--polygons", str(tmp_path / "demo.outline.json"), "--action", "put_onto",
                    "-o", str(tmp_path / "again.npz")])

@@ -9,9 +9,9 @@ and MediaPipe's hand model only:
    misses by colour and motion, :func:`.hand_regions.hand_regions`); one hand per frame is
    chosen (:func:`.hands.choose_hand`). Its grip is the fingertips' centre.
 2. **The outlined frame** is where the hand is at the object: the frame whose grip moves
-   least (camera shake included), among the frames the hand is seen in; for an action with a
-   static object among the later half of them, the release, where the object rests beside
-   the static object.
+   least (camera shake included), among the frames the hand's landmarks are seen in (else
+   those a hand region is); for an action with a static object among the later half of
+   them, the release, where the object rests beside the static object.
 3. **The object** is cut out by GrabCut seeded at the grip: surely the object just past the
    fingertips, probably the object within its size of the grip, surely not the hands; the
    size is the object noun's typical size measured with the hand as a ruler (a palm is
@@ -22,8 +22,8 @@ and MediaPipe's hand model only:
    ``put_onto`` and ``put_behind``, above it for ``put_in_front_of``, away from the arm for
    ``put_next_to``), the object and the hands surely not it.
 
-Where the clip does not say what to outline (no hand in any frame, two hands apart, nothing
-told apart at the grip, the static side out of view), :class:`OutlineUnsure` carries the
+Where the clip does not say what to outline (no hand in any frame, a hand seen too briefly,
+two hands apart, nothing told apart at the grip, the static side out of view), :class:`OutlineUnsure` carries the
 one line saying what to outline and a picture of what was seen.
 """
 
@@ -86,6 +86,10 @@ less is nothing told apart."""
 
 MAX_OBJECT_SHARE = 0.6
 """Largest object, as a share of the frame: more is the background taken for the object."""
+
+MIN_HAND_SECONDS = 0.5
+"""Least time [s] the hand must be seen for the clip to show what it takes: a hand seen for a
+few frames (passing by, cut by the view's edge) shows too little of it to tell."""
 
 APART_HAND_SIZES = 3.0
 """Two hands whose grips are farther apart than this many hand sizes in most frames they are
@@ -193,7 +197,13 @@ def propose_outline(frames: np.ndarray, action: str, *, fps: float, object_noun:
     if not len(seen):
         raise OutlineUnsure(f"no hand in any of the {n} frames: outline {what} on one frame (--polygons)",
                             n // 2, _picture(frames[n // 2], {}, None, None))
-    key = _key_frame(grips, sizes, seen, fps, later_half=static)
+    if len(seen) < MIN_HAND_SECONDS * fps:
+        k = int(seen[len(seen) // 2])
+        raise OutlineUnsure(f"a hand in only {len(seen)} of the {n} frames ({len(seen) / fps:.2g} s), too briefly to "
+                            f"see what it takes: outline {what} on one frame (--polygons)",
+                            k, _picture(frames[k], {}, _every_hand(tracks, regions, k), grips[k]))
+    marked = np.flatnonzero(np.isfinite(landmarks).all(axis=(1, 2)))
+    key = _key_frame(grips, sizes, marked if len(marked) else seen, fps, later_half=static)
     grip, size = grips[key], float(sizes[key])
     hands = _every_hand(tracks, regions, key) | _tight_hand(landmarks[key], regions[key], (h, w))
     _check_one_grip(tracks, key, frames[key], hands, what)
