@@ -220,7 +220,7 @@ def propose_outline(frames: np.ndarray, action: str, *, fps: float, object_noun:
     else:
         chosen = [int(np.argmax([_contrast(frames[key], piece, hands, size) for _, piece in pieces]))]
     seed = pieces[chosen[0]][0]
-    obj = _under_hand(np.any([pieces[k][1] for k in chosen], axis=0), hands, grip)
+    obj = _under_hand(_alike(frames[key], [piece for _, piece in pieces], chosen, hands, size), hands, grip)
     masks, seeds = {OBJECT: obj}, {OBJECT: seed}
     if static:
         label = static_role(0)
@@ -405,6 +405,19 @@ def _contrast(frame: np.ndarray, piece: np.ndarray, hands: np.ndarray, size: flo
     return float(np.linalg.norm(lab[piece].mean(axis=0) - lab[ring].mean(axis=0)))
 
 
+def _alike(frame: np.ndarray, pieces: list[np.ndarray], chosen, hands: np.ndarray, size: float) -> np.ndarray:
+    """(H, W) bool: the ``chosen`` pieces and every other piece more like them than they are
+    like their surroundings (its mean colour nearer to theirs than half their
+    :func:`_contrast`): one object seen on both sides of the hand holding it."""
+    union = np.any([pieces[k] for k in chosen], axis=0)
+    lab = cv2.cvtColor(frame, cv2.COLOR_RGB2LAB).astype(np.float32)
+    colour, contrast = lab[union].mean(axis=0), _contrast(frame, union, hands, size)
+    for k, piece in enumerate(pieces):
+        if k not in chosen and np.linalg.norm(lab[piece].mean(axis=0) - colour) < 0.5 * contrast:
+            union = union | piece
+    return union
+
+
 def _under_hand(obj: np.ndarray, hands: np.ndarray, grip: np.ndarray) -> np.ndarray:
     """(H, W) bool: the object ``obj`` with its part hidden by the hand (the hands' pixels
     within the convex hull of the object and the grip), its largest piece."""
@@ -473,8 +486,7 @@ def _cut_out(frame: np.ndarray, seed: np.ndarray, size: float, edges: tuple[floa
     cv2.grabCut(cv2.cvtColor(frame, cv2.COLOR_RGB2BGR), mask, None, background, foreground, GRABCUT_ROUNDS,
                 cv2.GC_INIT_WITH_MASK)
     piece = ((mask == cv2.GC_FGD) | (mask == cv2.GC_PR_FGD)).astype(np.uint8)
-    width = max(1, int(round(SURE_HAND_SIZE * size)))
-    piece = cv2.morphologyEx(piece, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (width, width)))
+    piece = cv2.morphologyEx(piece, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))  # specks off, a cable kept
     count, labels = cv2.connectedComponents(piece, connectivity=8)
     if count < 2:
         return np.zeros((h, w), dtype=bool)
