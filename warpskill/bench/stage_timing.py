@@ -1,6 +1,8 @@
 """The worker of ``warpskill bench speed --set``: per-stage timing of :func:`warpskill.optimize`, one case at a time.
 
-Run as a script with ``PYTHONPATH`` at a checkout, it times that checkout's code: it reads
+Run as a script with ``PYTHONPATH`` at a checkout, it times that checkout's code (with
+arguments, ``stage_timing.py run CLIP ...``, it runs that checkout's command line instead:
+``bench speed --clip``'s process, timed from outside). Without arguments it reads
 one case per line on stdin (JSON, :func:`demonstration`) and writes one JSON line per case:
 ``{"case", "seconds", "cpu_seconds", "stages": {label: {"seconds", "cpu_seconds", "iterations",
 "launches"}}}`` (wall and process CPU time: on a busy machine the CPU time is the steadier). It
@@ -94,8 +96,13 @@ def _warm_up(pipeline) -> None:
 
 
 def main() -> None:
-    """Time the cases read from stdin with the code of the checkout first on ``PYTHONPATH``."""
+    """Time the cases read from stdin with the code of the checkout first on ``PYTHONPATH`` (or, given
+    arguments, run its ``warpskill`` command line with them and exit with its status)."""
     _own_kernels(Path(os.environ["PYTHONPATH"].split(os.pathsep)[0]))
+    if len(sys.argv) > 1:
+        from warpskill.cli import main as command_line
+
+        sys.exit(command_line(sys.argv[1:]))
     import warpskill.optimizer.pipeline as pipeline
 
     torch.set_num_threads(1)

@@ -31,7 +31,8 @@ def _add_speed(bench) -> None:
     speed = bench.add_parser("speed", help="optimisation iterations: Warp engine vs its plain-Torch reference")
     speed.add_argument("--device", default="cpu", help="cpu, or cuda (then the CPU too)")
     speed.add_argument("--engines", nargs="+", default=["warp", "reference"], help="warp and/or reference")
-    speed.add_argument("--repeats", type=int, default=3, help="timed iterations (median reported)")
+    speed.add_argument("--repeats", type=int, default=3,
+                       help="timed iterations (median reported); with --clip: runs per checkout (least reported)")
     speed.add_argument("--full", action="store_true", help="also time warpskill.optimize end to end per engine")
     speed.add_argument("--scaling", action="store_true", help="also time iterations as frames, image size, B grow")
     speed.add_argument("--many", type=int, nargs="+", metavar="B",
@@ -39,13 +40,21 @@ def _add_speed(bench) -> None:
     speed.add_argument("--set", choices=("dev", "synthetic"), dest="speed_set",
                        help="instead: time warpskill.optimize per stage over a set, one case after another")
     speed.add_argument("--against", metavar="CHECKOUT",
-                       help="with --set: also time this checkout (a git worktree of the previous commit), interleaved")
+                       help="with --set or --clip: also time this checkout (a git worktree of the previous commit), "
+                            "interleaved")
     speed.add_argument("--baseline", metavar="FILE", help="with --set: the previous figures from a JSON file of -o")
-    speed.add_argument("-o", "--out", metavar="FILE", help="with --set: write this run's figures (JSON)")
+    speed.add_argument("-o", "--out", metavar="FILE",
+                       help="with --set: write this run's figures (JSON); with --clip: the folder of the clip, its "
+                            "runs and clip_speed.json (default warpskill-out/clip-speed)")
     speed.add_argument("--seeds", type=int, default=1, help="with --set synthetic: seeds per action (default: 1)")
     speed.add_argument("--folder", type=Path, help="with --set dev: the development videos' folder "
                        "(annotations.json, phases.csv, actions.csv; default: $WARPSKILL_DEV_DATA)")
     speed.add_argument("--videos", nargs="+", default=(), help="with --set dev: a subset of the video ids")
+    speed.add_argument("--clip", action="store_true",
+                       help="instead: time warpskill run per step on a rendered 640 x 480, 30 fps put_onto clip "
+                            "(--repeats runs, -o DIR, --cores, --against)")
+    speed.add_argument("--cores", default="0", help="with --clip: the cores each run is pinned to (taskset -c; "
+                       "default 0; 'none': unpinned)")
     speed.set_defaults(run=_bench_speed)
 
 
@@ -198,6 +207,14 @@ def _bench_kernels(args) -> int:
 def _bench_speed(args) -> int:
     from warpskill.bench.speed import bench_many, bench_speed, bench_speed_set  # torch and Warp: only here
 
+    if args.clip:
+        from warpskill.bench.clip_speed import bench_clip_speed  # torch and Warp: only here
+
+        if args.speed_set:
+            raise ValueError("--clip and --set are two benchmarks: give one")
+        bench_clip_speed(args.out or "warpskill-out/clip-speed", repeats=args.repeats, against=args.against,
+                         cores=None if args.cores == "none" else args.cores)
+        return 0
     if args.speed_set:
         bench_speed_set(args.speed_set, against=args.against, baseline=args.baseline, out=args.out,
                         folder=args.folder, seeds=args.seeds, videos=args.videos)

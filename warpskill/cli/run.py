@@ -76,6 +76,8 @@ def _steps(args, clock: common.StepClock) -> int:
 
     recon_path = keeper.reconstruction
     recon = None if redo else keeper.finished_reconstruction(options.to_json())
+    if recon is not None and recon.num_frames != demo.num_frames:  # made before the video was thinned: redone
+        recon = None
     if recon is None:
         redo = True
         if frames is None:
