@@ -1,5 +1,6 @@
-"""``warpskill app`` in a headless Chromium: upload a clip's frames, box the object with two clicks,
-run, and find the robot's replay and the results' zip on the page.
+"""``warpskill app`` in a headless Chromium: upload a clip's frames, ask for a proposal (none: no hand
+in a synthetic clip), box the object with two clicks, run, and find the robot's replay and the
+results' zip on the page.
 
 The clip is rendered here (:mod:`warpskill.synthetic.footage`: a synthetic pick-up, textured)
 and uploaded as its frames. Needs Gradio and Selenium (extra ``test``) and the OS's
@@ -48,8 +49,12 @@ def test_a_box_from_two_corners_is_the_polygon_the_run_reads(tmp_path):
     assert read.masks["object"].sum() == 21 * 16 and read.masks["static_0"].sum() == 7 * 5
     assert "object" not in outline.remove_role(drawn, "object") and outline.remove_role(drawn, "static_0")["static"] == []
     picture = outline.draw_outline(np.zeros((40, 50, 3), np.uint8), drawn, pending=(45.5, 35.5))
-    assert picture[12, 20].any() and not picture[30, 5].any()  # in the object's box, outside every box
-    assert picture[35, 42].all() and not picture[34, 42].any()  # the pending corner's cross, centred on its pixel
+    scale = outline.shown_scale((40, 50))
+    assert picture.shape == (40 * scale, 50 * scale, 3) and 40 * scale >= outline.SHOWN_HEIGHT_PX > 40 * (scale - 1)
+    assert picture[12 * scale, 20 * scale].any() and not picture[30 * scale, 5 * scale].any()  # in a box, outside all
+    row, column = int(35.5 * scale), int(45.5 * scale)  # the pending corner's cross, on its pixel's centre
+    assert picture[row, column - 2 * scale].all() and not picture[row - 3, column - 2 * scale].any()
+    assert outline.shown_to_frame((7 * scale + scale - 1, 2 * scale), (40, 50)) == (7.5, 2.5)
     with pytest.raises(ValueError, match="frame"):
         outline.parse_outline('{"object": []}')
 
@@ -132,14 +137,19 @@ def _type_into(driver, selector: str, value: str) -> None:
         "e.dispatchEvent(new Event('blur'));", selector, value)
 
 
-def _click_pixel(driver, image, x: float, y: float) -> None:
-    """Click the shown frame at its pixel (x, y) [px of the frame]."""
+def _click_pixel(driver, x: int, y: int, image_size: tuple[int, int]) -> None:
+    """Click the shown frame, of (H, W) ``image_size``, on the centre of its pixel (x, y). The page
+    shows the picture centred in its element, shrunk to fit, never enlarged (CSS object-fit: scale-down)."""
     from selenium.webdriver import ActionChains
 
+    image = driver.find_element("css selector", "#preview img")
+    driver.execute_script("arguments[0].scrollIntoView({block: 'center', behavior: 'instant'});", image)
+    width, height = image.size["width"], image.size["height"]
     natural = driver.execute_script("return [arguments[0].naturalWidth, arguments[0].naturalHeight];", image)
-    size = image.size
-    dx, dy = (x + 0.5) * size["width"] / natural[0], (y + 0.5) * size["height"] / natural[1]
-    ActionChains(driver).move_to_element_with_offset(image, dx - size["width"] / 2, dy - size["height"] / 2).click().perform()
+    shown = min(width / natural[0], height / natural[1], 1.0) * natural[0] / image_size[1]  # element px per frame px
+    dx = (width - shown * image_size[1]) / 2 + (x + 0.5) * shown - width / 2
+    dy = (height - shown * image_size[0]) / 2 + (y + 0.5) * shown - height / 2
+    ActionChains(driver).move_to_element_with_offset(image, round(dx), round(dy)).click().perform()
 
 
 @pytest.mark.slow
@@ -160,16 +170,22 @@ def test_the_page_runs_an_uploaded_clip_to_the_robots_replay(browser, page, tmp_
     browser.find_element(By.CSS_SELECTOR, "#clip input[type=file]").send_keys("\n".join(map(str, uploads)))
     middle = len(frames) // 2
     _wait(browser, lambda d: f'"frame": {middle}' in _outline_text(d), 60, "draft outline on the middle frame")
-    image = _wait(browser, lambda d: d.execute_script(
-        "const e = document.querySelector('#preview img'); return e && e.naturalWidth > 0 ? e : null;"),
-        30, "frame to outline")
+    _wait(browser, lambda d: d.execute_script(
+        "const e = document.querySelector('#preview img'); return e && e.naturalWidth > 0;"), 30, "frame to outline")
+
+    browser.find_element(By.CSS_SELECTOR, "#propose").click()  # no hand on a synthetic clip: the proposal says so
+    warning = _wait(browser, lambda d: _text(d, '[data-testid="toast-body"].warning'), 60, "proposal's warning")
+    assert f"no hand in any of the {len(frames)} frames" in warning, warning
+    _wait(browser, lambda d: d.find_elements(By.CSS_SELECTOR, "#proposal_view img"), 10, "what the proposal saw")
 
     ys, xs = np.nonzero(truth.object_mask[middle])
-    _click_pixel(browser, image, xs.min(), ys.min())  # the object's box: its corner pixels
-    _click_pixel(browser, image, xs.max(), ys.max())
+    _click_pixel(browser, xs.min(), ys.min(), frames.shape[1:3])  # the object's box: its corner pixels
+    _wait(browser, lambda d: d.execute_script("return document.querySelector('#preview img').naturalWidth > 0;"), 10,
+          "the first corner drawn")
+    _click_pixel(browser, xs.max(), ys.max(), frames.shape[1:3])
     boxed = _wait(browser, lambda d: '"object"' in _outline_text(d) and _outline_text(d), 30, "boxed object")
     x0, y0, x1, y1 = xs.min() + 0.5, ys.min() + 0.5, xs.max() + 0.5, ys.max() + 0.5
-    assert np.allclose(json.loads(boxed)["object"], [[x0, y0], [x1, y0], [x1, y1], [x0, y1]], atol=1.0), boxed
+    assert json.loads(boxed)["object"] == [[x0, y0], [x1, y0], [x1, y1], [x0, y1]], boxed  # on the pixels' centres
 
     drawn = clip_outline(truth, KEY_FRAME)  # the hand too: no MediaPipe hand on a synthetic clip
     _type_into(browser, "#outline textarea", outline.outline_text(drawn))

@@ -18,6 +18,7 @@ from warpskill import assets
 from warpskill.app import files, outline as outlines
 from warpskill.app.running import RunSettings, record_replay, run_clip
 from warpskill.contract import ACTIONS, DemonstrationError
+from warpskill.data.footage.outline_proposal import OutlineUnsure
 
 __all__ = ["build_page", "serve"]
 
@@ -49,17 +50,22 @@ def build_page(root: Path) -> gr.Blocks:
                 outline = gr.Textbox(label="outline: the polygon file (docs/formats.md) the run reads", lines=7,
                                      elem_id="outline")
             with gr.Column(scale=3):
-                preview = gr.Image(label="the outline on the frame", interactive=False, format="png",
+                preview = gr.Image(label="the outline on the frame", interactive=False, format="png", height=440,
                                    elem_id="preview")
         with gr.Row():
             action = gr.Dropdown(list(ACTIONS), value="pick_up", label="action", elem_id="action")
             object_noun = gr.Textbox(label="object noun (optional)", placeholder="mug", elem_id="object_noun")
             static_noun = gr.Textbox(label="static object noun (optional, for the proposal)", placeholder="box")
             propose = gr.Button("Propose an outline", elem_id="propose")
+        proposal_view = gr.Image(label="what the proposal saw", interactive=False, visible=False, format="png",
+                                 elem_id="proposal_view")
+        gr.Examples([[[str(EXAMPLE_CLIP)], EXAMPLE_OUTLINE.read_text(), "pick_up"]], [uploads, outline, action],
+                    [clip, frame, outline], lambda paths, text, _: _load_clip(root, paths, text), run_on_click=True,
+                    cache_examples=False, label="or the example: a synthetic clip of a box picked up")
         with gr.Row():
-            iterations = gr.Number(label="physics iterations (blank: the default)", precision=0,
-                               elem_id="iterations")
-            fps = gr.Number(label="frame rate [1/s] (blank: the video's; 12 for images)")
+            iterations = gr.Number(0, label="physics iterations (0: the default)", precision=0, minimum=0,
+                                   elem_id="iterations")
+            fps = gr.Number(0, label="frame rate [1/s] (0: the video's; 12 for images)", minimum=0)
             robot = gr.Checkbox(True, label="plan and replay on the robot (Franka Panda)")
         run = gr.Button("Run", variant="primary", elem_id="run")
         status = gr.Markdown(elem_id="status")
@@ -74,9 +80,6 @@ def build_page(root: Path) -> gr.Blocks:
             results = gr.File(label="results folder (zip)", interactive=False, elem_id="results")
         log = gr.Textbox(label="warpskill run's lines", lines=8, max_lines=30, elem_id="log")
 
-        gr.Examples([[[str(EXAMPLE_CLIP)], EXAMPLE_OUTLINE.read_text(), "pick_up"]], [uploads, outline, action],
-                    [clip, frame, outline], lambda paths, text, _: _load_clip(root, paths, text), run_on_click=True,
-                    cache_examples=False, label="or the example: a synthetic clip of a box picked up")
         uploads.upload(lambda paths, text: _load_clip(root, paths, text), [uploads, outline], [clip, frame, outline])
         frame.change(_set_frame, [frame, outline], outline)
         drawn = [clip, frame, outline, pending]
@@ -84,7 +87,7 @@ def build_page(root: Path) -> gr.Blocks:
         preview.select(_click, [clip, frame, outline, role, pending], [outline, pending, preview])
         remove.click(lambda text, chosen: outlines.outline_text(outlines.remove_role(_parsed(text), chosen)),
                      [outline, role], outline)
-        propose.click(_propose, [clip, action, fps, object_noun, static_noun], [outline, frame])
+        propose.click(_propose, [clip, action, fps, object_noun, static_noun], [outline, frame, proposal_view])
         run.click(_run, [clip, outline, action, object_noun, iterations, fps, robot],
                   [status, sheet, overlay, top_view, replay_video, replay_picture, results, log])
     return page
@@ -152,7 +155,7 @@ def _preview(clip: str | None, index: float, text: str, pending):
 def _click(clip: str | None, index: float, text: str, role: str, pending, event: gr.SelectData):
     """A box's first corner, or its second: then the role's polygon is that box."""
     drawn = _parsed(text)
-    corner = [float(event.index[0]) + 0.5, float(event.index[1]) + 0.5]  # the pixel's centre
+    corner = list(outlines.shown_to_frame(event.index, _frames(clip)[0].shape[1:3]))
     if pending is None:
         return text, corner, _preview(clip, index, text, corner)
     text = outlines.outline_text(outlines.with_box(drawn, role, pending, corner))
@@ -160,16 +163,20 @@ def _click(clip: str | None, index: float, text: str, role: str, pending, event:
 
 
 def _propose(clip: str | None, action: str, fps: float | None, object_noun: str, static_noun: str):
+    """The proposed outline; where the clip does not say what to outline, its line and what it saw."""
     frames, clip_fps = _frames(clip)
     path = files.clip_folder(Path(clip)) / "proposed_outline.json"
     try:
         proposed = outlines.propose(frames, action, fps or clip_fps, path, object_noun=object_noun.strip() or None,
                                     static_noun=static_noun.strip() or None)
+    except OutlineUnsure as unsure:
+        gr.Warning(unsure.line)
+        return gr.update(), gr.update(), gr.update(value=unsure.picture, visible=True)
     except ImportError:
-        raise gr.Error("this warpskill has no outline proposal yet: box the object on the frame") from None
-    except DemonstrationError as error:  # OutlineUnsure among them
+        raise gr.Error("finding the hand needs MediaPipe: pip install -e \".[video]\"; or box the object") from None
+    except DemonstrationError as error:  # an unknown action, a static noun for an action without a static object
         raise gr.Error(str(error)) from None
-    return outlines.outline_text(proposed), gr.update(value=proposed["frame"])
+    return outlines.outline_text(proposed), gr.update(value=proposed["frame"]), gr.update(value=None, visible=False)
 
 
 def _run(clip: str | None, text: str, action: str, object_noun: str, iterations: float | None, fps: float | None,
@@ -181,7 +188,7 @@ def _run(clip: str | None, text: str, action: str, object_noun: str, iterations:
         raise gr.Error(f"unknown action {action!r}: choose one of {', '.join(ACTIONS)}")
     out = files.new_folder(files.clip_folder(Path(clip)), "run")
     (out / "outline.json").write_text(text)
-    settings = RunSettings(action, object_noun.strip() or None, None if iterations is None else int(iterations),
+    settings = RunSettings(action, object_noun.strip() or None, int(iterations) if iterations else None,
                            fps or None, robot)
     outcome = run_clip(Path(clip), out / "outline.json", out, settings, lambda done, step: progress(done, desc=step))
     replay = None

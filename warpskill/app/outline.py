@@ -15,15 +15,20 @@ import cv2
 import numpy as np
 
 from warpskill.contract.vocabulary import HAND, OBJECT, static_role
+from warpskill.data.footage.outline_proposal import propose_outline, write_outline
 from warpskill.media import HAND_COLOR, OBJECT_COLOR, STATIC_COLOR
 
-__all__ = ["ROLES", "draft", "draw_outline", "parse_outline", "propose", "remove_role", "outline_text", "with_box"]
+__all__ = ["ROLES", "draft", "draw_outline", "outline_text", "parse_outline", "propose", "remove_role", "shown_scale",
+           "shown_to_frame", "with_box"]
 
 ROLES = (OBJECT, HAND, static_role(0), static_role(1), static_role(2))
 """The polygons a user draws: the object, the hand (optional: left out, it is found) and up to three static objects."""
 
 FILL_ALPHA = 0.3
 """Opacity of a polygon's fill on the frame."""
+
+SHOWN_HEIGHT_PX = 360
+"""A small frame is shown enlarged by a whole factor to at least this height [px], so a click picks one pixel."""
 
 
 def draft(frame: int) -> dict:
@@ -96,13 +101,25 @@ def _polygons(outline: dict) -> list[tuple[tuple[int, int, int], list]]:
     return drawn
 
 
+def shown_scale(image_size: tuple[int, int]) -> int:
+    """The whole factor a frame of (H, W) ``image_size`` is enlarged by on the page."""
+    return max(1, -(-SHOWN_HEIGHT_PX // image_size[0]))
+
+
+def shown_to_frame(index: tuple[float, float], image_size: tuple[int, int]) -> tuple[float, float]:
+    """A pixel of the enlarged frame (x, y) to the centre of the frame's pixel under it [px]."""
+    scale = shown_scale(image_size)
+    return float(index[0] // scale) + 0.5, float(index[1] // scale) + 0.5
+
+
 def draw_outline(frame: np.ndarray, outline: dict, pending: tuple[float, float] | None = None) -> np.ndarray:
-    """(H, W, 3) uint8: ``frame`` with the outline's polygons filled and edged in the pictures'
-    colours, and ``pending`` (a box's first corner [px]) as a cross."""
-    picture = frame.copy()
+    """(s H, s W, 3) uint8: ``frame`` enlarged by :func:`shown_scale` s, with the outline's polygons
+    filled and edged in the pictures' colours, and ``pending`` (a box's first corner [px]) as a cross."""
+    scale = shown_scale(frame.shape[:2])
+    picture = cv2.resize(frame, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
     for color, points in _polygons(outline):
         try:
-            pixels = np.round((np.asarray(points, dtype=float) - 0.5) * 16).astype(np.int32)
+            pixels = np.round(np.asarray(points, dtype=float) * scale * 16 - 8).astype(np.int32)
         except (TypeError, ValueError):
             continue  # a half-typed polygon: drawn once it is whole
         if pixels.ndim != 2 or pixels.shape[1] != 2 or len(pixels) < 2:
@@ -112,8 +129,8 @@ def draw_outline(frame: np.ndarray, outline: dict, pending: tuple[float, float] 
         picture = cv2.addWeighted(filled, FILL_ALPHA, picture, 1.0 - FILL_ALPHA, 0.0)
         cv2.polylines(picture, [pixels], True, color, 1, cv2.LINE_AA, shift=4)
     if pending is not None:
-        x, y = (int(v) for v in pending)  # the pixel holding the point
-        cv2.drawMarker(picture, (x, y), (255, 255, 255), cv2.MARKER_CROSS, 9, 1)
+        x, y = (int(v * scale) for v in pending)
+        cv2.drawMarker(picture, (x, y), (255, 255, 255), cv2.MARKER_CROSS, 4 * scale + 1, 1)
     return picture
 
 
@@ -123,10 +140,9 @@ def propose(frames: np.ndarray, action: str, fps: float, path: Path, *, object_n
     written to ``path`` as the polygon file and returned.
 
     Raises:
-        OutlineUnsure: no outline could be proposed (its line says why).
+        OutlineUnsure: the clip does not say what to outline (its line says what; its picture shows what was seen).
+        ImportError: MediaPipe, which finds the hand, is not installed (extra ``video``).
     """
-    from warpskill.data.footage.outline_proposal import propose_outline, write_outline
-
     proposal = propose_outline(frames, action, fps=fps, object_noun=object_noun, static_noun=static_noun)
     write_outline(proposal, path)
     return json.loads(path.read_text())
