@@ -107,8 +107,9 @@ CARRIED_SCORE = 0.2
 """Least :func:`_carried` score of a piece moving with the hand; below, the piece past the
 fingertips is taken (a pressed or poked object does not move with the hand)."""
 
-THUMB_BASE, THUMB_TIP = 2, 4
-"""Indices of the thumb's knuckle (MCP joint) and tip among MediaPipe's 21 hand landmarks."""
+THUMB_BASE, THUMB_TIP, INDEX_TIP = 2, 4, 8
+"""Indices of the thumb's knuckle (MCP joint) and tip and of the index fingertip among
+MediaPipe's 21 hand landmarks."""
 
 GRABCUT_ROUNDS = 5
 """GrabCut's iterations (its colour models settle within a few)."""
@@ -338,9 +339,9 @@ def _edges_px(noun: str | None, default: tuple[float, float], size: float) -> tu
 
 
 def _object_seeds(points: np.ndarray, region: np.ndarray, grip: np.ndarray, size: float) -> list[np.ndarray]:
-    """(2,) [px] seeds where the object may be: past the fingertips (what a finger presses or
-    pokes), past the index and the little finger's knuckles and past the thumb (what the fist
-    holds sticks out at its sides); for a hand found only as a ``region`` (H, W), past its
+    """(2,) [px] seeds where the object may be: past the fingertips (what the fingers press),
+    past the index fingertip (what it pokes), past the index and the little finger's knuckles
+    and past the thumb (what the fist holds sticks out at its sides); for a hand found only as a ``region`` (H, W), past its
     grip away from the region's centre."""
 
     def past(point: np.ndarray, origin: np.ndarray) -> np.ndarray:
@@ -352,8 +353,9 @@ def _object_seeds(points: np.ndarray, region: np.ndarray, grip: np.ndarray, size
         ys, xs = np.nonzero(region)
         return [past(grip, np.array([xs.mean() + 0.5, ys.mean() + 0.5]))]
 
-    return [past(grip, points[WRIST]), past(points[INDEX_KNUCKLE], points[PINKY_KNUCKLE]),
-            past(points[PINKY_KNUCKLE], points[INDEX_KNUCKLE]), past(points[THUMB_TIP], points[THUMB_BASE])]
+    return [past(grip, points[WRIST]), past(points[INDEX_TIP], points[INDEX_KNUCKLE]),
+            past(points[INDEX_KNUCKLE], points[PINKY_KNUCKLE]), past(points[PINKY_KNUCKLE], points[INDEX_KNUCKLE]),
+            past(points[THUMB_TIP], points[THUMB_BASE])]
 
 
 def _plausible(piece: np.ndarray, size: float) -> bool:
