@@ -125,6 +125,9 @@ def test_run_end_to_end_and_resume(recording, tmp_path):
     print(f"propagated masks vs truth, IoU over all frames: {ious}; run took {elapsed:.1f} s")
     assert min(ious.values()) > IOU_FLOOR, ious
     assert cv2.imread(str(out / "demo.png")) is not None
+    timing = json.loads((out / "timing.json").read_text())  # the seconds of each step, also the last line printed
+    assert {"prepare", "optimize", "pictures"} <= set(timing["steps"]) and stdout.splitlines()[-1].startswith("seconds: ")
+    assert timing["cpu_seconds"] == pytest.approx(sum(step["cpu_seconds"] for step in timing["steps"].values()))
 
     recon = Reconstruction.load(out / "reconstruction.npz")
     assert evaluate(recon, "pick_up").success, stdout
