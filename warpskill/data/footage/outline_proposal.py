@@ -341,8 +341,8 @@ def _edges_px(noun: str | None, default: tuple[float, float], size: float) -> tu
 def _object_seeds(points: np.ndarray, region: np.ndarray, grip: np.ndarray, size: float) -> list[np.ndarray]:
     """(2,) [px] seeds where the object may be: past the fingertips (what the fingers press),
     past the index fingertip (what it pokes), past the index and the little finger's knuckles
-    and past the thumb (what the fist holds sticks out at its sides); for a hand found only as a ``region`` (H, W), past its
-    grip away from the region's centre."""
+    and past the thumb (what the fist holds sticks out at its sides); for a hand found only
+    as a ``region`` (H, W), past its grip away from the region's centre, and at its grip."""
 
     def past(point: np.ndarray, origin: np.ndarray) -> np.ndarray:
         away = point - origin
@@ -351,7 +351,7 @@ def _object_seeds(points: np.ndarray, region: np.ndarray, grip: np.ndarray, size
 
     if not np.isfinite(points).all():
         ys, xs = np.nonzero(region)
-        return [past(grip, np.array([xs.mean() + 0.5, ys.mean() + 0.5]))]
+        return [past(grip, np.array([xs.mean() + 0.5, ys.mean() + 0.5])), grip]
 
     return [past(grip, points[WRIST]), past(points[INDEX_TIP], points[INDEX_KNUCKLE]),
             past(points[INDEX_KNUCKLE], points[PINKY_KNUCKLE]), past(points[PINKY_KNUCKLE], points[INDEX_KNUCKLE]),
