@@ -1,6 +1,6 @@
-"""``warpskill app`` in a headless Chromium: upload a clip's frames, ask for a proposal (none: no hand
-in a synthetic clip), box the object with two clicks, run, and find the robot's replay and the
-results' zip on the page.
+"""``warpskill app``: its outline, files and run helpers, and the page in a headless Chromium: upload
+a clip's frames, ask for a proposal (none: no hand in a synthetic clip), box the object with two
+clicks, run, and find the robot's replay and the results' zip on the page.
 
 The clip is rendered here (:mod:`warpskill.synthetic.footage`: a synthetic pick-up, textured)
 and uploaded as its frames. Needs Gradio and Selenium (extra ``test``) and the OS's
@@ -24,8 +24,10 @@ import numpy as np
 import pytest
 
 from warpskill.app import files, outline
+from warpskill.app.running import RunOutcome, RunSettings
 from warpskill.contract import Demonstration
 from warpskill.data import read_polygons
+from warpskill.media import write_mp4
 from warpskill.synthetic import make_demonstration
 from warpskill.synthetic.footage import clip_outline, textured_frames
 
@@ -71,6 +73,22 @@ def test_a_clip_is_one_video_or_several_frames(tmp_path):
     assert files.new_folder(files.clip_folder(clip), "run").name == "run-1"
     with pytest.raises(ValueError, match="one video file or several images"):
         files.store_clip(images[:1], tmp_path / "page")
+    video = write_mp4(tmp_path / "shot.mp4", np.full((4, 16, 16, 3), 90, np.uint8), 10.0)
+    clip = files.store_clip([video], tmp_path / "page")
+    frames, fps = files.clip_frames(clip)
+    assert clip == tmp_path / "page" / "shot-1" / "clip.mp4" and frames.shape == (4, 16, 16, 3) and fps == 10.0
+
+
+def test_a_run_says_in_one_line_how_it_ended():
+    assert RunOutcome(2, "demonstration: ...\nwarpskill: error: polygons.json: object: missing\n").summary \
+        == "warpskill: error: polygons.json: object: missing"
+    assert RunOutcome(3, "pick_up: success\nplan: p.npz\nreplay: r.npz\npick_up: failure (lifted)\n").summary \
+        == "stopped: no robot plan, or the replay fails the action's criteria; pick_up: failure (lifted)"
+    assert RunOutcome(1, "Traceback (most recent call last):\n  File x\nKeyError: 'k'\n").summary.startswith(
+        "crashed: KeyError: 'k'")
+    settings = RunSettings("put_onto", object_noun="mug", iterations=5, fps=24.0, robot=False)
+    assert settings.arguments() == ["--action", "put_onto", "--quiet", "--object-noun", "mug", "--iterations", "5",
+                                    "--fps", "24.0", "--no-robot"]
 
 
 # ----------------------------------------------------------------------------- in the browser

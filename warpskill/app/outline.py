@@ -127,7 +127,7 @@ def draw_outline(frame: np.ndarray, outline: dict, pending: tuple[float, float] 
         filled = picture.copy()
         cv2.fillPoly(filled, [pixels], color, shift=4)
         picture = cv2.addWeighted(filled, FILL_ALPHA, picture, 1.0 - FILL_ALPHA, 0.0)
-        cv2.polylines(picture, [pixels], True, color, 1, cv2.LINE_AA, shift=4)
+        cv2.polylines(picture, [pixels], True, color, 1 + (scale > 1), cv2.LINE_AA, shift=4)
     if pending is not None:
         x, y = (int(v * scale) for v in pending)
         cv2.drawMarker(picture, (x, y), (255, 255, 255), cv2.MARKER_CROSS, 4 * scale + 1, 1)

@@ -73,11 +73,13 @@ class RunOutcome:
 
     @property
     def summary(self) -> str:
-        """The error line of a refused run, else the exit status's meaning and the last verdict."""
+        """The error line of a refused run, a crash's last line, else the exit status's meaning and the last verdict."""
         lines = self.log.splitlines()
         errors = [line for line in lines if line.startswith("warpskill: error:")]
         if errors:
             return errors[-1]
+        if "Traceback (most recent call last):" in lines:
+            return f"crashed: {lines[-1]} (its traceback is in the lines below)"
         verdicts = [line for line in lines if ": success" in line or ": failure" in line]
         meaning = EXIT_MEANINGS.get(self.status, f"exit status {self.status}")
         return f"{meaning}; {verdicts[-1]}" if verdicts else meaning
