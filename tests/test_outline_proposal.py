@@ -45,7 +45,8 @@ def _render(action="put_onto", with_hand=True, seed=0):
     """
     placed, static_box = SCENES[action]
     rng = np.random.default_rng(seed)
-    table, box, thing, skin = (_texture(rng, c) for c in ((120, 125, 130), (60, 150, 70), (50, 70, 200), (215, 160, 130)))
+    colours = ((120, 125, 130), (60, 150, 70), (50, 70, 200), (215, 160, 130))
+    table, box, thing, skin = (_texture(rng, colour) for colour in colours)
     # the object's path: at rest, carried (frames 16-25), at rest on the box
     steps = np.concatenate([np.zeros(16), np.linspace(0.0, 1.0, 10), np.ones(18)])
     corners = np.array(OBJECT_REST) + steps[:, None] * (np.array(placed) - OBJECT_REST)

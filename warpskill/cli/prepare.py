@@ -28,7 +28,8 @@ __all__ = ["add_recording_options", "prepare", "register"]
 def register(commands) -> None:
     """Add ``prepare`` to the ``commands`` sub-parsers."""
     parser = commands.add_parser(
-        "prepare", help="a video and its masks (or one annotated frame, or none) to a demonstration .npz and a contact sheet"
+        "prepare",
+        help="a video and its masks (or one annotated frame, or none) to a demonstration .npz and a contact sheet"
     )
     add_recording_options(parser)
     parser.add_argument("--object-noun", metavar="NOUN",

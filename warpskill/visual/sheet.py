@@ -2,7 +2,8 @@
 
 :func:`contact_sheet` draws the masks over sampled frames (each role in its colour of the
 palette, :mod:`warpskill.media`), each frame's contact flag, the found hand's landmarks
-where given, the outline proposed on one frame where given (dashed, on that frame's tile), and a strip of the contact signal of every frame. OpenCV only; the command
+where given, the outline proposed on one frame where given (dashed, on that frame's tile),
+and a strip of the contact signal of every frame. OpenCV only; the command
 line hands it what :func:`warpskill.data.read_recording` read.
 """
 
@@ -118,13 +119,13 @@ DASH_PX = 4
 def _dashed(tile: np.ndarray, polygons) -> None:
     """Each polygon (K, 2) [px] drawn dashed in white on ``tile`` in place."""
     for points in polygons:
-        closed = np.vstack([points, points[:1]]) - 0.5
+        closed = np.vstack([points, points[:1]]) - 0.5  # pixel centres at integers
         for a, b in zip(closed[:-1], closed[1:]):
-            length = float(np.linalg.norm(b - a))
+            length = max(float(np.linalg.norm(b - a)), 1e-9)
             for start in np.arange(0.0, length, 2 * DASH_PX):
-                p, q = a + (b - a) * start / max(length, 1e-9), a + (b - a) * min(start + DASH_PX, length) / max(length, 1e-9)
-                cv2.line(tile, tuple(np.round(p * 16).astype(int)), tuple(np.round(q * 16).astype(int)), (255, 255, 255), 1,
-                         cv2.LINE_AA, shift=4)
+                dash = [a + (b - a) * at / length for at in (start, min(start + DASH_PX, length))]
+                p, q = (tuple(int(v) for v in np.round(end * 16)) for end in dash)
+                cv2.line(tile, p, q, (255, 255, 255), 1, cv2.LINE_AA, shift=4)
 
 
 def _skeleton(tile: np.ndarray, points: np.ndarray) -> None:

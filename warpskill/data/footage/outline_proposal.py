@@ -92,8 +92,8 @@ MIN_HAND_SECONDS = 0.5
 few frames (passing by, cut by the view's edge) shows too little of it to tell."""
 
 APART_HAND_SIZES = 3.0
-"""Two hands whose grips are farther apart than this many hand sizes in most frames they are
-both seen in could each hold the object."""
+"""Two hands whose grips are farther apart than this many hand sizes on the outlined frame
+could each hold the object (two hands holding one object grip it closer together)."""
 
 CARRIED_HAND_SIZES = 0.5
 """Least shift of the grip from the key frame's, in hand sizes, for a frame to tell a carried
@@ -104,8 +104,8 @@ CARRIED_FRAMES = 6
 at 12 fps: before the hand has turned the object much)."""
 
 CARRIED_SCORE = 0.2
-"""Least :func:`_carried` score of a piece moving with the hand; below, the piece past the
-fingertips is taken (a pressed or poked object does not move with the hand)."""
+"""Least :func:`_carried` score of a piece moving with the hand; where none has it, the piece
+standing out most is taken (a pressed or poked object does not move with the hand)."""
 
 THUMB_BASE, THUMB_TIP, INDEX_TIP = 2, 4, 8
 """Indices of the thumb's knuckle (MCP joint) and tip and of the index fingertip among
@@ -188,60 +188,46 @@ def propose_outline(frames: np.ndarray, action: str, *, fps: float, object_noun:
         raise DemonstrationError(f"action: {error}") from None
     if static_noun is not None and not static:
         raise DemonstrationError(f"static_noun: {action} has no static object")
-    n, h, w = frames.shape[:3]
+    h, w = frames.shape[1:3]
     what = "the object" + (" and the static object" if static else "")
     tracks = find_hands(frames)
     regions = hand_regions(frames, tracks)
     landmarks = choose_hand(tracks)
     grips, sizes = _grips(landmarks, regions)
     seen = np.flatnonzero(np.isfinite(grips[:, 0]))
-    if not len(seen):
-        raise OutlineUnsure(f"no hand in any of the {n} frames: outline {what} on one frame (--polygons)",
-                            n // 2, _picture(frames[n // 2], {}, None, None))
-    if len(seen) < MIN_HAND_SECONDS * fps:
-        k = int(seen[len(seen) // 2])
-        raise OutlineUnsure(f"a hand in only {len(seen)} of the {n} frames ({len(seen) / fps:.2g} s), too briefly to "
-                            f"see what it takes: outline {what} on one frame (--polygons)",
-                            k, _picture(frames[k], {}, _every_hand(tracks, regions, k), grips[k]))
+    _check_hand_seen(frames, seen, grips, tracks, regions, fps, what)
     marked = np.flatnonzero(np.isfinite(landmarks).all(axis=(1, 2)))
     key = _key_frame(grips, sizes, marked if len(marked) else seen, fps, later_half=static)
     grip, size = grips[key], float(sizes[key])
     hands = _every_hand(tracks, regions, key) | _tight_hand(landmarks[key], regions[key], (h, w))
     _check_one_grip(tracks, key, frames[key], hands, what)
-    nouns = {OBJECT: object_noun} if object_noun else {}
     edges = _edges_px(object_noun, DEFAULT_OBJECT_EDGES, size)
-    pieces = [(seed, piece) for seed in _object_seeds(landmarks[key], regions[key], grip, size)
-              if _plausible(piece := _cut_out(frames[key], seed, size, edges, hands), size)]
+    seeds = _object_seeds(landmarks[key], regions[key], grip, size)
+    cut = [(seed, _cut_out(frames[key], seed, size, edges, hands)) for seed in seeds]
+    pieces = [(seed, piece) for seed, piece in cut if _plausible(piece, size)]
     if not pieces:
         raise OutlineUnsure(f"frame {key}: nothing told apart at the hand's fingertips: outline {what} on one frame "
                             f"(--polygons)", key, _picture(frames[key], {}, hands, grip))
-    carried = np.array([_carried(frames, key, piece, grips, sizes, tracks, regions) for _, piece in pieces])
-    if (carried > CARRIED_SCORE).any():
-        chosen = np.flatnonzero(carried > CARRIED_SCORE)
-    else:
-        chosen = [int(np.argmax([_contrast(frames[key], piece, hands, size) for _, piece in pieces]))]
-    seed = pieces[chosen[0]][0]
-    obj = _under_hand(_alike(frames[key], [piece for _, piece in pieces], chosen, hands, size), hands, grip)
-    masks, seeds = {OBJECT: obj}, {OBJECT: seed}
+    seed, obj = _the_object(frames, key, pieces, grips, sizes, tracks, regions, hands)
+    masks, seeds, nouns = {OBJECT: obj}, {OBJECT: seed}, {OBJECT: object_noun} if object_noun else {}
     if static:
         label = static_role(0)
-        edges = _edges_px(static_noun, DEFAULT_STATIC_EDGES, size)
-        seeds[label] = _static_seed(action, obj, landmarks[key], edges, size)
-        masks[label] = _cut_out(frames[key], seeds[label], size, edges, hands | obj) if _inside(seeds[label], (h, w)) \
-            else np.zeros((h, w), dtype=bool)
+        seeds[label] = _static_seed(action, obj, landmarks[key], _edges_px(static_noun, DEFAULT_STATIC_EDGES, size), size)
+        masks[label] = _static_piece(frames[key], seeds[label], size, static_noun, hands | obj)
         if not _plausible(masks[label], size):
             raise OutlineUnsure(f"frame {key}: no static object told apart {_SIDES[action]} the object: outline it "
                                 f"(--polygons)", key, _picture(frames[key], masks, hands, seeds[label]))
-        if static_noun:
-            nouns[label] = static_noun
+        nouns.update({label: static_noun} if static_noun else {})
     polygons = {label: _polygon(mask) for label, mask in masks.items()}
-    return OutlineProposal(key, polygons, nouns, (h, w), tracks, regions, {k: tuple(map(float, v)) for k, v in seeds.items()})
+    seeds = {label: (float(x), float(y)) for label, (x, y) in seeds.items()}
+    return OutlineProposal(key, polygons, nouns, (h, w), tracks, regions, seeds)
 
 
 def write_outline(proposal: OutlineProposal, path: str | os.PathLike) -> None:
     """Write the proposal as the polygon file ``--polygons`` reads (``docs/formats.md``):
     ``frame``, ``object``, ``static`` and, when known, ``object_noun``."""
-    statics = sorted((label for label in proposal.polygons if label != OBJECT), key=lambda label: int(label.split("_")[1]))
+    statics = sorted((label for label in proposal.polygons if label != OBJECT),
+                     key=lambda label: int(label.rsplit("_", 1)[1]))
     data = {"frame": int(proposal.frame), "object": _rounded(proposal.polygons[OBJECT]),
             "static": [_rounded(proposal.polygons[label]) for label in statics]}
     if OBJECT in proposal.nouns:
@@ -282,6 +268,21 @@ def _grips(landmarks: np.ndarray, regions: np.ndarray) -> tuple[np.ndarray, np.n
         grips[k] = (x + 0.5, y + 0.5)
         sizes[k] = typical if np.isfinite(typical) else 0.5 * np.sqrt(region.sum())
     return grips, sizes
+
+
+def _check_hand_seen(frames: np.ndarray, seen: np.ndarray, grips: np.ndarray, tracks: HandTracks,
+                     regions: np.ndarray, fps: float, what: str) -> None:
+    """OutlineUnsure where the hand is ``seen`` in no frame, or in fewer than
+    :data:`MIN_HAND_SECONDS` of them; ``what`` names what to outline."""
+    n = len(frames)
+    if not len(seen):
+        raise OutlineUnsure(f"no hand in any of the {n} frames: outline {what} on one frame (--polygons)",
+                            n // 2, _picture(frames[n // 2], {}, None, None))
+    if len(seen) < MIN_HAND_SECONDS * fps:
+        k = int(seen[len(seen) // 2])
+        raise OutlineUnsure(f"a hand in only {len(seen)} of the {n} frames ({len(seen) / fps:.2g} s), too briefly to "
+                            f"see what it takes: outline {what} on one frame (--polygons)",
+                            k, _picture(frames[k], {}, _every_hand(tracks, regions, k), grips[k]))
 
 
 def _key_frame(grips: np.ndarray, sizes: np.ndarray, seen: np.ndarray, fps: float, *, later_half: bool) -> int:
@@ -325,9 +326,9 @@ def _check_one_grip(tracks: HandTracks, key: int, frame: np.ndarray, hands: np.n
     points = tracks.landmarks[key, present]
     grips = points[:, list(FINGERTIPS)].mean(axis=1)
     if np.linalg.norm(grips[0] - grips[1]) > APART_HAND_SIZES * float(np.max(hand_size(points))):
+        picture = _picture(frame, {}, hands, None, seeds={"grip": tuple(grips[0]), "other grip": tuple(grips[1])})
         raise OutlineUnsure(f"frame {key}: two hands apart, either could hold the object: outline {what} on one frame "
-                            f"(--polygons)", key, _picture(frame, {}, hands, None, seeds={"grip": tuple(grips[0]),
-                                                                                           "other grip": tuple(grips[1])}))
+                            f"(--polygons)", key, picture)
 
 
 def _edges_px(noun: str | None, default: tuple[float, float], size: float) -> tuple[float, float]:
@@ -384,8 +385,8 @@ def _carried(frames: np.ndarray, key: int, piece: np.ndarray, grips: np.ndarray,
             if np.isfinite(shift).all() and np.linalg.norm(shift) >= CARRIED_HAND_SIZES * sizes[key]:
                 hand = _every_hand(tracks, regions, j)
                 stay = _difference(frames[j], hand, xs, ys, reference)
-                moved = _difference(frames[j], hand, np.round(xs + shift[0]).astype(int), np.round(ys + shift[1]).astype(int),
-                                    reference)
+                carried_xs, carried_ys = np.round(xs + shift[0]).astype(int), np.round(ys + shift[1]).astype(int)
+                moved = _difference(frames[j], hand, carried_xs, carried_ys, reference)
                 if np.isfinite(stay) and np.isfinite(moved) and stay + moved > 0:
                     scores.append((stay - moved) / (stay + moved))
             j += step
@@ -405,6 +406,34 @@ def _contrast(frame: np.ndarray, piece: np.ndarray, hands: np.ndarray, size: flo
         return 0.0
     lab = cv2.cvtColor(frame, cv2.COLOR_RGB2LAB).astype(np.float32)
     return float(np.linalg.norm(lab[piece].mean(axis=0) - lab[ring].mean(axis=0)))
+
+
+def _the_object(frames: np.ndarray, key: int, pieces: list, grips: np.ndarray, sizes: np.ndarray,
+                tracks: HandTracks, regions: np.ndarray, hands: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The object among the ``pieces`` ((seed, (H, W) bool) cut out at the key frame): those
+    moving with the hand (:func:`_carried` above :data:`CARRIED_SCORE`), else the one standing
+    out most from its surroundings (:func:`_contrast`); with the pieces alike them
+    (:func:`_alike`) and the part hidden by the hand (:func:`_under_hand`).
+
+    Returns:
+        The first chosen piece's seed (x, y) [px] and the object's (H, W) bool mask.
+    """
+    size = float(sizes[key])
+    carried = np.array([_carried(frames, key, piece, grips, sizes, tracks, regions) for _, piece in pieces])
+    if (carried > CARRIED_SCORE).any():
+        chosen = list(np.flatnonzero(carried > CARRIED_SCORE))
+    else:
+        chosen = [int(np.argmax([_contrast(frames[key], piece, hands, size) for _, piece in pieces]))]
+    alike = _alike(frames[key], [piece for _, piece in pieces], chosen, hands, size)
+    return pieces[chosen[0]][0], _under_hand(alike, hands, grips[key])
+
+
+def _static_piece(frame: np.ndarray, seed: np.ndarray, size: float, noun: str | None, not_it: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the static object cut out at ``seed`` (x, y) [px] (empty when the seed
+    lies outside the image), bounded by its noun's typical size."""
+    if not _inside(seed, not_it.shape):
+        return np.zeros(not_it.shape, dtype=bool)
+    return _cut_out(frame, seed, size, _edges_px(noun, DEFAULT_STATIC_EDGES, size), not_it)
 
 
 def _alike(frame: np.ndarray, pieces: list[np.ndarray], chosen, hands: np.ndarray, size: float) -> np.ndarray:
@@ -443,7 +472,8 @@ def _difference(frame: np.ndarray, hand: np.ndarray, xs: np.ndarray, ys: np.ndar
     return float(np.abs(frame[ys[ok], xs[ok]].astype(np.float32) - reference[ok]).mean())
 
 
-def _static_seed(action: str, obj: np.ndarray, points: np.ndarray, edges: tuple[float, float], size: float) -> np.ndarray:
+def _static_seed(action: str, obj: np.ndarray, points: np.ndarray, edges: tuple[float, float],
+                 size: float) -> np.ndarray:
     """(2,) [px] the static object's seed: half its middle edge past the object's box on the
     action's side (:data:`_SIDES`; beside: away from the arm)."""
     ys, xs = np.nonzero(obj)
@@ -463,7 +493,8 @@ def _inside(point: np.ndarray, image_size: tuple[int, int]) -> bool:
     return bool(0 <= point[0] < image_size[1] and 0 <= point[1] < image_size[0])
 
 
-def _cut_out(frame: np.ndarray, seed: np.ndarray, size: float, edges: tuple[float, float], not_it: np.ndarray) -> np.ndarray:
+def _cut_out(frame: np.ndarray, seed: np.ndarray, size: float, edges: tuple[float, float],
+             not_it: np.ndarray) -> np.ndarray:
     """(H, W) bool: GrabCut's piece of ``frame`` nearest to ``seed`` (x, y) [px]: surely what lies
     within :data:`SURE_HAND_SIZE` hand sizes of the seed's nearest pixel outside ``not_it`` (H,
     W), probably within half its middle edge, surely not farther than :data:`SEARCH_EDGES`
