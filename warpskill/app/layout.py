@@ -16,7 +16,7 @@ import gradio as gr
 
 from warpskill import assets
 from warpskill.app import files, outline as outlines
-from warpskill.app.running import RunSettings, record_replay, run_clip
+from warpskill.app.running import STEPS, RunSettings, record_replay, run_clip
 from warpskill.contract import ACTIONS, DemonstrationError
 from warpskill.data.footage.outline_proposal import OutlineUnsure
 
@@ -80,7 +80,7 @@ def build_page(root: Path) -> gr.Blocks:
             results = gr.File(label="results folder (zip)", interactive=False, elem_id="results")
         log = gr.Textbox(label="warpskill run's lines", lines=8, max_lines=30, elem_id="log")
 
-        uploads.upload(lambda paths, text: _load_clip(root, paths, text), [uploads, outline], [clip, frame, outline])
+        uploads.upload(lambda paths: _load_clip(root, paths), uploads, [clip, frame, outline])
         frame.change(_set_frame, [frame, outline], outline)
         drawn = [clip, frame, outline, pending]
         outline.change(_preview, drawn, preview)
@@ -117,22 +117,17 @@ def _frames(clip: str | None):
     return files.clip_frames(Path(clip))
 
 
-def _load_clip(root: Path, paths: list[str] | None, text: str):
-    """Store the uploaded clip; keep the outline if it fits it, else start one on the middle frame."""
+def _load_clip(root: Path, paths: list[str] | None, text: str | None = None):
+    """Store the uploaded clip; its outline is ``text`` (the example's) or a new one on the middle frame."""
     if not paths:
-        return None, gr.update(), text
+        return None, gr.update(), text or ""
     try:
         clip = files.store_clip(paths, root)
         frames, _ = files.clip_frames(clip)
     except (DemonstrationError, FileNotFoundError) as error:
         raise gr.Error(str(error)) from None
-    try:
-        kept = outlines.parse_outline(text or "")
-    except ValueError:
-        kept = None
-    if kept is None or kept["frame"] >= len(frames) or not (set(kept) - {"frame", "static"} or kept.get("static")):
-        kept = outlines.draft(len(frames) // 2)
-    return str(clip), gr.update(maximum=len(frames) - 1, value=kept["frame"]), outlines.outline_text(kept)
+    drawn = outlines.draft(len(frames) // 2) if text is None else _parsed(text)
+    return str(clip), gr.update(maximum=len(frames) - 1, value=drawn["frame"]), outlines.outline_text(drawn)
 
 
 def _set_frame(index: float, text: str) -> str:
@@ -191,14 +186,13 @@ def _run(clip: str | None, text: str, action: str, object_noun: str, iterations:
     settings = RunSettings(action, object_noun.strip() or None, int(iterations) if iterations else None,
                            fps or None, robot)
     outcome = run_clip(Path(clip), out / "outline.json", out, settings, lambda done, step: progress(done, desc=step))
-    replay = None
     if robot:
-        progress(0.95, desc="the replay's video")
-        replay = record_replay(out)
+        progress(len(STEPS) / (len(STEPS) + 1), desc="video: the robot's replay rendered")
+    replay = record_replay(out) if robot else None
+    plotted = replay is not None and replay.suffix != ".mp4"  # no offscreen renderer: the paths' plot
     shown = {name: str(out / name) if (out / name).is_file() else None
              for name in ("demo.png", "overlay.gif", "top_view.png")}
-    is_video = replay is not None and replay.suffix == ".mp4"
     return (f"**{outcome.summary}** ({out})", shown["demo.png"], shown["overlay.gif"], shown["top_view.png"],
-            gr.update(value=str(replay) if is_video else None, visible=replay is None or is_video),
-            gr.update(value=None if replay is None or is_video else str(replay), visible=replay is not None and not is_video),
+            gr.update(value=None if replay is None or plotted else str(replay), visible=not plotted),
+            gr.update(value=str(replay) if plotted else None, visible=plotted),
             str(files.zip_folder(out)), outcome.log)

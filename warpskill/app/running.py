@@ -20,14 +20,14 @@ from warpskill.contract import Reconstruction, ResultsFolder
 __all__ = ["RunSettings", "RunOutcome", "STEPS", "record_replay", "run_clip"]
 
 STEPS = (
-    ("demonstration:", "prepare: the outline followed through the clip"),
-    ("contact sheet:", "optimize: the scene reconstructed (physics)"),
-    ("reconstruction:", "pictures: overlay, top view"),
-    ("trajectories:", "retarget: the Panda's plan"),
-    ("plan:", "replay: the plan simulated"),
-    ("replay:", "scene: the 3D recording"),
+    ("prepare: the outline followed through the clip", "contact sheet:"),
+    ("optimize: the scene reconstructed (physics)", "reconstruction:"),
+    ("pictures: the overlay, the top view", "trajectories:"),
+    ("retarget: the Panda's plan", "plan:"),
+    ("replay: the plan simulated", "replay:"),
+    ("scene: the 3D recording", "scene:"),
 )
-"""Line prefix of ``warpskill run`` -> what it starts next, in the order they are printed."""
+"""``warpskill run``'s steps as the page names them, each with the prefix of the line that ends it, in order."""
 
 EXIT_MEANINGS = {0: "finished", 3: "stopped: no robot plan, or the replay fails the action's criteria",
                  2: "refused: the recording gives no demonstration", 1: "bad input"}
@@ -89,22 +89,23 @@ def run_clip(clip: Path, outline: Path, out: Path, settings: RunSettings,
              on_step: Callable[[float, str], None]) -> RunOutcome:
     """Run ``warpskill run CLIP --polygons OUTLINE -o OUT`` with ``settings``.
 
-    ``on_step(fraction, description)`` is called at the start and as each step's line arrives
-    (fraction of :data:`STEPS` done).
+    ``on_step(fraction, step)`` is called at the start and as each step ends (its line arrives):
+    the fraction of :data:`STEPS` done, of ``len(STEPS) + 1`` (the page's own last step), and the
+    step that starts.
     """
     command = [sys.executable, "-c", "import sys; from warpskill.cli import main; sys.exit(main())",
                "run", str(clip), "--polygons", str(outline), "-o", str(out), *settings.arguments()]
-    on_step(0.0, STEPS[0][1])
-    lines, step = [], 0
+    on_step(0.0, STEPS[0][0])
+    lines, done = [], 0
     environment = {**os.environ, "PYTHONUNBUFFERED": "1"}
     with subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                           env=environment) as process:
         for line in process.stdout:
             lines.append(line)
-            reached = [k for k, (prefix, _) in enumerate(STEPS) if line.startswith(prefix)]
-            if reached and reached[0] >= step:
-                step = reached[0] + 1
-                on_step(step / (len(STEPS) + 1), STEPS[min(step, len(STEPS) - 1)][1])
+            ended = [k for k in range(done, len(STEPS)) if line.startswith(STEPS[k][1])]
+            if ended:
+                done = ended[0] + 1
+                on_step(done / (len(STEPS) + 1), STEPS[done][0] if done < len(STEPS) else "done")
     return RunOutcome(process.returncode, "".join(lines))
 
 
