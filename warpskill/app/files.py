@@ -27,6 +27,7 @@ FRAMES_FPS = 12.0
 """Frame rate [1/s] of a clip uploaded as images (``warpskill run``'s default for numbered frames)."""
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
+"""Uploaded files read as frames; any other file is a video."""
 
 
 def new_folder(parent: Path, stem: str) -> Path:
