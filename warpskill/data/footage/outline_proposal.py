@@ -114,6 +114,10 @@ MediaPipe's 21 hand landmarks."""
 GRABCUT_ROUNDS = 5
 """GrabCut's iterations (its colour models settle within a few)."""
 
+GRABCUT_SEED = 0
+"""OpenCV's random seed set before each GrabCut: the same frame gives the same piece whatever
+ran before it in the process."""
+
 POLYGON_TOLERANCE_PX = 0.75
 """Largest distance [px] of a proposed polygon from the traced mask's border."""
 
@@ -516,6 +520,7 @@ def _cut_out(frame: np.ndarray, seed: np.ndarray, size: float, edges: tuple[floa
     if not ((mask == cv2.GC_BGD) | (mask == cv2.GC_PR_BGD)).any():
         return np.zeros((h, w), dtype=bool)
     background, foreground = np.zeros((1, 65)), np.zeros((1, 65))
+    cv2.setRNGSeed(GRABCUT_SEED)  # its colour models start from k-means on OpenCV's global generator
     cv2.grabCut(cv2.cvtColor(frame, cv2.COLOR_RGB2BGR), mask, None, background, foreground, GRABCUT_ROUNDS,
                 cv2.GC_INIT_WITH_MASK)
     piece = ((mask == cv2.GC_FGD) | (mask == cv2.GC_PR_FGD)).astype(np.uint8)
