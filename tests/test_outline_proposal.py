@@ -166,3 +166,35 @@ def test_a_static_noun_for_an_action_without_a_static_object_is_refused():
     frames, _, _ = _render()
     with pytest.raises(DemonstrationError, match="static_noun: pick_up has no static object"):
         propose_outline(frames[:2], "pick_up", fps=FPS, static_noun="box")
+
+
+def _footage_folder(folder, clips):
+    """A real-footage folder (docs/formats.md) of rendered clips: clip id -> (frames, object masks,
+    static mask), every frame annotated with the object's and the static object's boxes."""
+    entries = {}
+    for clip_id, (frames, objects, static) in clips.items():
+        (folder / "frames" / clip_id).mkdir(parents=True)
+        entries[clip_id] = []
+        for k, (frame, obj) in enumerate(zip(frames, objects)):
+            name = f"{clip_id}/{k + 1:04d}.jpg"
+            cv2.imwrite(str(folder / "frames" / name), cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
+            labels = []
+            for role, mask in (("object 0", obj), ("object 1", static)):
+                ys, xs = np.nonzero(mask)
+                box = {"x1": int(xs.min()), "y1": int(ys.min()), "x2": int(xs.max()) + 1, "y2": int(ys.max()) + 1}
+                labels.append({"box2d": box, "gt_annotation": role})
+            entries[clip_id].append({"name": name, "gt_placeholders": ["box", "crate"], "labels": labels})
+    (folder / "annotations.json").write_text(json.dumps(entries))
+    return folder
+
+
+def test_the_footage_bench_without_an_outline_scores_the_proposals_and_counts_a_refusal_as_zero(tmp_path):
+    from warpskill.bench.footage import bench_footage, footage_table
+
+    folder = _footage_folder(tmp_path / "footage", {"7": _proposed("put_onto")[:3], "8": _render(with_hand=False)})
+    scores = bench_footage(folder, tmp_path / "out", no_outline=True, quiet=True)
+    taken, refused = scores["7"], scores["8"]
+    assert taken.refused is None and len(taken.ious["object"]) == 44 and np.max(taken.ious["object"]) > 0.5
+    assert refused.refused.startswith("no hand in any of the 44 frames") and not refused.ious["object"].any()
+    assert "8 refused: no hand" in footage_table(scores)
+    assert sorted(path.name for path in (tmp_path / "out" / "proposals").iterdir()) == ["7.png", "8.png"]
