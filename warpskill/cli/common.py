@@ -14,8 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 from warpskill import robot, visual  # lazy packages: their names (MuJoCo, torch, Warp) load on first use
-from warpskill.contract import ResultsFolder, evaluate
-from warpskill.contract.frame_rate import at_optimiser_rate
+from warpskill.contract import ResultsFolder, at_optimiser_rate, evaluate
 
 if TYPE_CHECKING:  # the optimiser pulls in torch and Warp: imported where used, so the command line starts fast
     from warpskill.optimizer import OptimizeOptions

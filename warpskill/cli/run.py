@@ -31,8 +31,7 @@ from pathlib import Path
 from warpskill import robot, visual  # lazy packages: their names (MuJoCo, torch, Warp) load on first use
 from warpskill.cli import common
 from warpskill.cli.prepare import add_recording_options, prepare
-from warpskill.contract import ResultsFolder
-from warpskill.contract.frame_rate import at_optimiser_rate, frame_stride
+from warpskill.contract import ResultsFolder, at_optimiser_rate, frame_stride
 from warpskill.data import read_video
 
 __all__ = ["register"]

@@ -14,7 +14,7 @@ from warpskill.contract.actions import ACTIONS, check_action, has_static_object
 from warpskill.contract.camera import Intrinsics, default_intrinsics
 from warpskill.contract.demonstration import Demonstration, DemonstrationError
 from warpskill.contract.evaluation import Evaluation, evaluate, success_table
-from warpskill.contract.frame_rate import at_optimiser_rate
+from warpskill.contract.frame_rate import at_optimiser_rate, frame_stride
 from warpskill.contract.reconstruction import Reconstruction, ReconstructionError
 from warpskill.contract.replay import Replay
 from warpskill.contract.results_folder import ResultsFolder, ResultsFolderError
@@ -40,6 +40,7 @@ __all__ = [
     "check_action",
     "default_intrinsics",
     "evaluate",
+    "frame_stride",
     "has_static_object",
     "majority_filter",
     "success_table",
