@@ -3,11 +3,12 @@
 :func:`prepare_recording` reads the video with OpenCV, builds the masks from whichever
 source is given (mask folders, label images, polygons on one frame propagated through the
 video, or Something-Else boxes; with none, the polygons proposed from the video itself,
-:func:`warpskill.data.footage.outline_proposal.propose_outline`), settles the contact signal (a contact file as given;
-detections or, lacking them, the masks through the paper's filter) and returns the
-:class:`~warpskill.contract.Demonstration`; :func:`read_recording` also returns the frames and
-the found hand's landmarks (for :func:`warpskill.visual.sheet.contact_sheet`). It joins
-the three pipelines of :mod:`warpskill.data`: the readers, the boxes and the footage path.
+:func:`warpskill.data.footage.outline_proposal.propose_outline`), settles the contact
+signal (a contact file as given; detections or, lacking them, the masks through the paper's
+filter) and returns the :class:`~warpskill.contract.Demonstration`; :func:`read_recording`
+also returns the frames and the found hand's landmarks (for
+:func:`warpskill.visual.sheet.contact_sheet`). It joins the three pipelines of
+:mod:`warpskill.data`: the readers, the boxes and the footage path.
 
 Every error for bad input is a :class:`~warpskill.contract.DemonstrationError` (a
 ValueError) whose one line names the file and the problem.
@@ -24,10 +25,10 @@ import numpy as np
 from warpskill.contract.actions import check_action
 from warpskill.contract.demonstration import Demonstration, DemonstrationError
 from warpskill.contract.vocabulary import HAND, OBJECT
-from warpskill.data.footage.outline_proposal import OutlineProposal, propose_outline
 from warpskill.data.boxes.something_else import SomethingElseVideo, read_box_annotations, something_else_demonstration
 from warpskill.data.contact import estimate_contact
 from warpskill.data.footage.clip_masks import footage_masks
+from warpskill.data.footage.outline_proposal import OutlineProposal, propose_outline
 from warpskill.data.footage.propagation import propagate_masks
 from warpskill.data.masks import clean_masks
 from warpskill.data.readers.contact_files import read_contact, read_detections
