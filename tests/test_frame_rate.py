@@ -72,3 +72,15 @@ def test_the_true_motion_judged_at_10_fps_gets_the_full_rate_verdict(phone_clip)
 def test_a_12_fps_demonstration_is_left_as_it_is():
     demo = make_demonstration("pick_up", seed=0, noise="none", image_size=(60, 80), duration=2.0)
     assert at_optimiser_rate(demo) is demo and every_nth(demo, 1) is demo
+
+
+def test_optimize_with_workers_hands_its_tasks_the_same_frames(phone_clip, tmp_path):
+    from warpskill.cli.pipeline import _fitted
+
+    slow, fast, corrupt = tmp_path / "slow.npz", tmp_path / "fast.npz", tmp_path / "corrupt.npz"
+    make_demonstration("pick_up", seed=0, noise="none", image_size=(60, 80), duration=2.0).save(slow)
+    phone_clip.save(fast)
+    corrupt.write_bytes(b"not a zip")
+    assert _fitted(slow) == slow and _fitted(corrupt) == corrupt  # read in the task, as before
+    thinned = _fitted(fast)
+    assert thinned.fps == 10.0 and np.array_equal(thinned.object_mask, at_optimiser_rate(phone_clip).object_mask)

@@ -4,9 +4,19 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from warpskill import robot, visual  # lazy packages: their names (MuJoCo, torch, Warp) load on first use
 from warpskill.cli import common
-from warpskill.contract import Demonstration, Reconstruction, ResultsFolder, evaluate
+from warpskill.contract import (
+    Demonstration,
+    DemonstrationError,
+    Reconstruction,
+    ResultsFolder,
+    at_optimiser_rate,
+    evaluate,
+    frame_stride,
+)
 
 __all__ = ["register"]
 
@@ -93,7 +103,8 @@ def _optimize_on_ray(args, options, stems: list[str]) -> int:
 
         resolve_device(options.device)  # a bad device is one error line, not one failure per demonstration
     summary = optimize_folder(
-        dict(zip(stems, args.demos)), args.out, options, workers=args.workers, address=args.ray_address,
+        {stem: _fitted(path) for stem, path in zip(stems, args.demos)}, args.out, options, workers=args.workers,
+        address=args.ray_address,
         progress=not args.quiet, postprocess=None if args.no_pictures else _pictures,
     )
     for outcome in summary.outcomes.values():
@@ -103,6 +114,18 @@ def _optimize_on_ray(args, options, stems: list[str]) -> int:
             common.report(recon, str(recon.action) or None)
     print(summary)
     return 1 if summary.failed else 0
+
+
+def _fitted(path: Path) -> Path | Demonstration:
+    """A demonstration file for its Ray task to read, or, of a video well above 12 fps, the frames the
+    optimiser fits (:func:`~warpskill.contract.frame_rate.at_optimiser_rate`, as ``optimize`` without
+    ``--workers`` fits them); a file that does not read is left to its task, to fail alone."""
+    try:
+        with np.load(path) as arrays:
+            fps = float(arrays["fps"])
+        return path if frame_stride(fps) == 1 else at_optimiser_rate(Demonstration.load(path))
+    except (OSError, ValueError, KeyError, DemonstrationError):
+        return path
 
 
 def _pictures(recon, demo, folder: Path) -> None:
