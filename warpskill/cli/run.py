@@ -91,7 +91,7 @@ def _steps(args, clock: common.StepClock) -> int:
         common.report(recon, demo.action)
 
     if not common.robot_steps_wanted(args):
-        _scene(recon, demo, args.video, stride, out, redo, clock)
+        _scene(recon, demo, args.video, stride, frames, out, redo, clock)
         return 0
     robot.prefer_headless_gl()
 
@@ -102,7 +102,7 @@ def _steps(args, clock: common.StepClock) -> int:
         with clock.step("retarget"):
             plan = common.plan_robot(recon, args)
         if plan is None:
-            _scene(recon, demo, args.video, stride, out, redo, clock)
+            _scene(recon, demo, args.video, stride, frames, out, redo, clock)
             return 3
         common.save_plan(plan, plan_path)
     else:
@@ -119,17 +119,18 @@ def _steps(args, clock: common.StepClock) -> int:
     else:
         print(f"replay: done, skipped ({replay_path})")
     common.report(result.reconstruction, demo.action)
-    _scene(recon, demo, args.video, stride, out, redo, clock, plan, result)
+    _scene(recon, demo, args.video, stride, frames, out, redo, clock, plan, result)
     return 0 if result.success else 3
 
 
-def _scene(recon, demo, video: Path, stride: int, out: Path, redo: bool, clock: common.StepClock, plan=None,
-           result=None) -> None:
-    """The 3D recording (``scene.rrd``) of what exists, the video's frames included, unless nothing
-    changed since it was written."""
+def _scene(recon, demo, video: Path, stride: int, frames, out: Path, redo: bool, clock: common.StepClock,
+           plan=None, result=None) -> None:
+    """The 3D recording (``scene.rrd``) of what exists, the video's fitted frames included (``frames``,
+    or read again when None), unless nothing changed since it was written."""
     if redo or not (out / "scene.rrd").is_file():
         with clock.step("scene"):
-            common.save_scene(recon, demo, out, plan, result, frames=_frames(video, demo, stride))
+            frames = _frames(video, demo, stride) if frames is None else frames
+            common.save_scene(recon, demo, out, plan, result, frames=frames)
 
 
 def _frames(video: Path, demo, stride: int):
