@@ -8,7 +8,8 @@ one after another, pinned to the given cores (``taskset``), with the code of thi
 and, with ``against``, of another (a checkout from before, whose ``run`` fits every frame),
 alternating which goes first. The table gives the least seconds of each step over the
 repeats (``timing.json``, wall and CPU), the process's start-up (its wall time less its
-steps: Python, torch and Warp loading), the whole process, and each run's verdicts: the
+steps: Python, torch and Warp loading), the whole process (wall and CPU: on a busy machine
+the CPU time is the steadier), and each run's verdicts: the
 reconstruction's and the replayed robot's.
 """
 
@@ -17,6 +18,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -78,7 +80,7 @@ def time_run(root: Path, clip: Clip, out: Path, cores: str | None) -> dict:
     fresh process pinned to ``cores`` (e.g. ``"0"``; None: not pinned).
 
     Returns:
-        ``{"seconds": the process's wall time, "steps": timing.json's steps or {} (a checkout that
+        ``{"seconds", "cpu_seconds": the process's wall and CPU time, "steps": timing.json's steps or {} (a checkout that
         writes none), "reconstruction", "replay": verdicts (True, False; None: not made), "status"}``.
     """
     shutil.rmtree(out, ignore_errors=True)
@@ -87,19 +89,25 @@ def time_run(root: Path, clip: Clip, out: Path, cores: str | None) -> dict:
     if cores is not None:
         command = ["taskset", "-c", cores, *command]
     env = dict(os.environ, PYTHONPATH=str(root), OMP_NUM_THREADS="1")
-    start = time.perf_counter()
+    start, used = time.perf_counter(), _children_cpu()
     done = subprocess.run(command, env=env, cwd=root, capture_output=True, text=True)
-    seconds = time.perf_counter() - start
+    seconds, cpu_seconds = time.perf_counter() - start, _children_cpu() - used
     if done.returncode not in (0, 3):
         raise RuntimeError(f"warpskill run ({root}) stopped with status {done.returncode}: {done.stderr.strip()}")
     keeper = ResultsFolder(out)
     timing = json.loads(keeper.timing.read_text()) if keeper.timing.is_file() else {"steps": {}}
     recon = keeper.load_finished(keeper.reconstruction, Reconstruction.load)
     replay = keeper.finished_replay()
-    return {"seconds": seconds, "steps": timing["steps"], "status": done.returncode,
+    return {"seconds": seconds, "cpu_seconds": cpu_seconds, "steps": timing["steps"], "status": done.returncode,
             "frames": None if recon is None else recon.num_frames,
             "reconstruction": None if recon is None else evaluate(recon, ACTION).success,
             "replay": None if replay is None else replay.success}
+
+
+def _children_cpu() -> float:
+    """User and system CPU seconds of this process's finished children."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def bench_clip_speed(folder: str | os.PathLike, *, repeats: int = 3, cores: str | None = "0",
@@ -149,7 +157,9 @@ def _print_table(truth: Demonstration, runs: dict[str, list[dict]], cores: str |
     starts = [[r["seconds"] - sum(t["seconds"] for t in r["steps"].values()) for r in records if r["steps"]]
               for records in runs.values()]
     show(f"{'start-up':<10} " + " ".join(f"{min(s):>26.1f}" if s else f"{'-':>26}" for s in starts))
-    show(f"{'process':<10} " + " ".join(f"{min(r['seconds'] for r in records):>26.1f}" for records in runs.values()))
+    show(f"{'process':<10} " + " ".join(f"{min(r['seconds'] for r in records):.1f} / "
+                                         f"{min(r['cpu_seconds'] for r in records):.1f}".rjust(26)
+                                         for records in runs.values()))
     for label, records in runs.items():
         counts = {kind: _verdicts([r[kind] for r in records]) for kind in ("reconstruction", "replay")}
         frames = sorted({r["frames"] for r in records if r["frames"] is not None})
