@@ -3,6 +3,7 @@ writer (pyarrow, json, PyAV), labels, calibration and provenance present, the sa
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -213,3 +214,20 @@ def test_failed_episode_is_labelled(tmp_path):
     assert data["next.done"] == [False] * (length - 1) + [True]
     assert (row["success"], row["failure"], row["skill"], row["attempt"]) == (False, "replay fails behind", "1044", 3)
     assert json.loads(row["layout"]) == {"object": [0.1, 0.5, 0.3], "statics": [[0.3, 0.6, 0.0]]}
+
+
+@pytest.mark.slow
+def test_a_skill_takes_its_objects_noun_from_the_demonstration_beside_an_unnamed_reconstruction(tmp_path):
+    """An older reconstruction without ``object_noun``: the skill exported names the demonstration's mug
+    (held by its rim in every layout, not substituted), as the provenance does."""
+    from warpskill.contract.reconstruction import Reconstruction
+    from warpskill.export.dataset import load_sources
+    from warpskill.synthetic import make_demonstration
+
+    demo = dataclasses.replace(make_demonstration("pick_up", seed=0, noise="none"), object_noun="mug")
+    (tmp_path / "mug").mkdir()
+    demo.save(tmp_path / "mug/demonstration.npz")
+    Reconstruction(**demo.truth).save(tmp_path / "mug/reconstruction.npz")
+    [source] = load_sources([tmp_path / "mug/reconstruction.npz"])
+    assert str(source.recon.object_noun) == "" and source.object_noun == "mug"
+    assert source.skill().object_noun == "mug"

@@ -65,6 +65,31 @@ def test_a_cup_is_held_by_its_rim_and_lifted_onto_the_book_in_mujoco():
 
 
 @pytest.mark.slow
+def test_a_mug_skill_at_a_new_layout_is_held_by_its_rim_and_lifted_in_mujoco(capsys):
+    from warpskill.bench.generalize import bench_generalize
+    from warpskill.export.layouts import sample_layouts
+    from warpskill.robot.sizes import fit_sizes
+    from warpskill.robot.skill_layout import apply_skill, skill_from
+
+    recon = relations_truth("put_onto", 5)  # a 12.6 x 9.1 x 9.9 cm mug onto a box
+    skill = skill_from(recon)
+    assert skill.object_noun == "mug"
+    unnamed = dataclasses.replace(skill, object_noun="")  # a skill that does not know its object ...
+    assert "substitute" in fit_sizes(apply_skill(unnamed, sample_layouts(unnamed, 1)[0]))[1]  # ... is substituted
+    run = bench_generalize({"mug": recon}, layouts=1, engines=("mujoco",), robust=False)
+    [outcome] = run.outcomes
+    assert outcome.planned, outcome.reason
+    plan = outcome.plan
+    assert plan.layout is not None and plan.grasp_name.startswith("rim_") and plan.object_noun == "mug"
+    assert np.allclose(plan.object_size, recon.object_size) and "substitute" not in plan.note
+    replayed = outcome.replays["mujoco"]
+    z = replayed.reconstruction.object_pos[:, 2]
+    assert z.max() > z[0] + LIFT and replayed.success, replayed.evaluation.checks
+    assert run.handled == {"mug": {"held by its rim": 1}}
+    assert "objects: substituted in 0 plan(s), held by the rim in 1" in capsys.readouterr().out
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [1, 3, 20])  # a card, a key, a phone: 1 cm tall
 def test_a_flat_object_is_picked_up_in_mujoco(seed):
     recon = relations_truth("pick_up", seed)

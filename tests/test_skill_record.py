@@ -57,6 +57,29 @@ def test_save_and_load_round_trip(tmp_path):
     assert loaded.onset == pytest.approx(skill.onset) and math.isfinite(loaded.release)
 
 
+def test_the_object_noun_is_kept_saved_and_carried_to_a_layout(tmp_path):
+    skill = skill_from(dataclasses.replace(truth("put_behind"), object_noun=np.array("mug")))
+    assert skill.object_noun == "mug"
+    skill.save(tmp_path / "skill.npz")
+    loaded = Skill.load(tmp_path / "skill.npz")
+    assert loaded.object_noun == "mug"
+    laid = apply_skill(loaded, moved(demonstrated_layout(loaded), 0.05, -0.03, math.radians(40)))
+    assert str(laid.object_noun) == "mug"  # the layout's replay holds the person's mug
+
+
+def test_a_skill_file_without_the_noun_loads_unnamed(tmp_path):
+    skill = skill_from(truth("put_behind"))
+    assert skill.object_noun == ""
+    skill.save(tmp_path / "unnamed.npz")  # an unknown noun is written as before the key
+    with np.load(tmp_path / "unnamed.npz") as unnamed:
+        assert "object_noun" not in unnamed.files
+    old = {field.name: np.asarray(getattr(skill, field.name)) for field in dataclasses.fields(Skill)
+           if field.name != "object_noun"}
+    np.savez(tmp_path / "old.npz", **old)  # a file written before the key
+    loaded = Skill.load(tmp_path / "old.npz")
+    assert loaded.object_noun == "" and str(apply_skill(loaded, demonstrated_layout(loaded)).object_noun) == ""
+
+
 def test_load_names_the_bad_key(tmp_path):
     skill = skill_from(truth("pick_up"))
     arrays = {field.name: np.asarray(getattr(skill, field.name)) for field in dataclasses.fields(Skill)}

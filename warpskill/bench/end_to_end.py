@@ -72,6 +72,14 @@ class RobotOutcome:
         """Whether the plan succeeded in every engine run and in MuJoCo under every perturbation tried."""
         return self.replayed and bool(self.perturbed) and all(self.perturbed.values())
 
+    @property
+    def handling(self) -> str:
+        """How the plan holds the object: ``"substituted"`` (a cuboid the gripper fits instead of
+        one too wide for every face and rim), ``"held by its rim"`` (an open vessel), or ``""``
+        (as it is, or no plan): from the plan's note (:func:`~warpskill.robot.sizes.fit_sizes`)."""
+        note = self.plan.note if self.planned else ""
+        return "substituted" if "substitute" in note else "held by its rim" if "rim" in note else ""
+
     def broken_by(self) -> list[str]:
         """Names of the perturbations under which the MuJoCo replay failed."""
         return [name for name, ok in self.perturbed.items() if not ok]
@@ -90,7 +98,7 @@ class RobotOutcome:
         """The outcome as the outcome table keeps it (``CaseOutcome.robot``)."""
         return RobotRecord(self.planned, {engine: self.success(engine) for engine in self.replays},
                            self.robust if self.perturbed else None, tuple(self.misses()),
-                           self.plan.note if self.planned and "substitute" in self.plan.note else "")
+                           self.plan.note if self.handling == "substituted" else "")
 
     def agree(self) -> bool:
         """Whether every engine run gives the same verdict."""
@@ -114,7 +122,7 @@ class RobotOutcome:
         plan = self.plan
         where = "" if plan.offset is None else (f", at ({plan.offset[0]:.2f}, {plan.offset[1]:.2f}) m "
                                                 f"{np.degrees(plan.yaw):.0f} deg")
-        resized = ", substituted object" if "substitute" in plan.note else ", held by its rim" if "rim" in plan.note else ""
+        resized = f", object {self.handling}" if self.handling else ""
         verdicts = [f"{engine} {verdict(result.success)} {result.replay_time:5.1f} s"
                     for engine, result in self.replays.items()]
         return (f"planned {plan.planning_time:4.1f} s ({plan.grasp_name}{where}{resized}); " + "; ".join(verdicts))

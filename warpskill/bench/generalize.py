@@ -16,9 +16,14 @@ not beside / behind / in front of / on it as the action's checks judge it: the d
 reasons), never judged by a failed replay; the run shows how many draws were redrawn, per
 skill and why.
 
+The skill keeps what the object is (the reconstruction's ``object_noun``): an open vessel too
+wide for the gripper is held by its rim in every layout, as in the demonstration's replay, and
+substituted by a cuboid the gripper fits only where no face or rim does; the run counts, per
+skill, the plans that substituted the object and those that held it by its rim.
+
 Shows, per action, planned / succeeded (per engine) / robust as a success table, how the
-engines agree, the redrawn layouts, and the reason of every miss (the plan's error, the failed checks, the
-perturbations that broke it). With ``out``, one outcome row per layout (case ``<name>/layout
+engines agree, the redrawn layouts, the objects substituted or held by their rims, and the
+reason of every miss (the plan's error, the failed checks, the perturbations that broke it). With ``out``, one outcome row per layout (case ``<name>/layout
 <k>``, :class:`~warpskill.bench.outcomes.CaseOutcome`: success = replayed in every engine,
 its ``robot`` record with the misses and the substitute) goes to ``OUT/outcomes.json``, and the
 flips since a baseline table are shown.
@@ -92,15 +97,19 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
     rows: dict[str, list[tuple[str, bool]]] = {}
     misses, outcomes, cases = [], [], []
     redrawn: dict[str, Counter[str]] = {}
+    handled: dict[str, Counter[str]] = {}
+    nouns: dict[str, str] = {}
     for i, (name, recon) in enumerate(recons.items()):
         skill, done = skill_from(recon), 0
         redrawn[_short(name)] = Counter()
+        handled[_short(name)], nouns[_short(name)] = Counter(), skill.object_noun
         try:
             for k, layout in enumerate(islice(random_layouts(skill, seed=seed + i, redrawn=redrawn[_short(name)]),
                                               layouts)):
                 outcome = robot_step(apply_skill(skill, layout), engines=engines, device=device, robust=robust,
                                      skill=skill, layout=layout)
                 outcomes.append(outcome)
+                handled[_short(name)][outcome.handling or ("as it is" if outcome.planned else "no plan")] += 1
                 cases.append(_case(f"{_short(name)}/layout {k}", skill.action, outcome))
                 verdicts = _verdicts(outcome, engines, robust)
                 done += 1
@@ -115,11 +124,12 @@ def bench_generalize(recons: Mapping[str, Reconstruction], *, layouts: int = 10,
                 cases.append(_case(f"{_short(name)}/layout {k}", skill.action, unplanned))
             misses.append(f"{name}: every layout: {error}")
             logger.info("%s: no layout: %s", name, error)
-    show("", success_table(rows), *filter(None, [agreement_line(outcomes)]), *_redrawn_lines(redrawn))
+    show("", success_table(rows), *filter(None, [agreement_line(outcomes)]), *_redrawn_lines(redrawn),
+         *_handling_lines(handled, nouns))
     if misses:
         show("misses:", *(f"  {line}" for line in misses))
     record_outcomes(out, cases, baseline=baseline, save_baseline=save_baseline)
-    return GeneralizeRun(rows, misses, outcomes, cases, redrawn)
+    return GeneralizeRun(rows, misses, outcomes, cases, redrawn, handled)
 
 
 def _redrawn_lines(redrawn: Mapping[str, Counter[str]]) -> list[str]:
@@ -131,6 +141,18 @@ def _redrawn_lines(redrawn: Mapping[str, Counter[str]]) -> list[str]:
     total = sum(redrawn.values(), Counter())
     return [f"layouts redrawn before planning: {counts(total)}",
             *(f"  {name}: {counts(counter)}" for name, counter in redrawn.items() if counter)]
+
+
+def _handling_lines(handled: Mapping[str, Counter[str]], nouns: Mapping[str, str]) -> list[str]:
+    """How many plans substituted the object and how many held it by its rim: in all, then per
+    skill that did either, with its object's noun."""
+    def counts(counter: Counter[str]) -> str:
+        return ", ".join(f"{how} {count}" for how, count in counter.most_common())
+
+    total = sum(handled.values(), Counter())
+    return [f"objects: substituted in {total['substituted']} plan(s), held by the rim in {total['held by its rim']}",
+            *(f"  {name} ({nouns[name] or 'unnamed object'}): {counts(counter)}" for name, counter in handled.items()
+              if counter["substituted"] or counter["held by its rim"])]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -145,6 +167,9 @@ class GeneralizeRun:
         cases: each layout's row of the outcome table (:class:`~warpskill.bench.outcomes.CaseOutcome`).
         redrawn: per skill (its name in the outcome table), the draws refused before planning
             and drawn again, counted by reason (:func:`warpskill.export.layouts.layouts`).
+        handled: per skill (its name in the outcome table), the
+            layouts counted by how the plan held the object (``"substituted"``, ``"held by
+            its rim"``, ``"as it is"``) or ``"no plan"``.
     """
 
     rows: dict[str, list[tuple[str, bool]]]
@@ -152,6 +177,7 @@ class GeneralizeRun:
     outcomes: list[RobotOutcome]
     cases: list[CaseOutcome]
     redrawn: dict[str, Counter[str]]
+    handled: dict[str, Counter[str]]
 
 
 def _short(name: str) -> str:

@@ -4,7 +4,8 @@ A :class:`Skill` (``skill.npz`` beside the reconstruction, ``docs/formats.md``) 
 action, the timing (grasp signal, contact onset and release [s]), the cuboid sizes, the
 demonstrated layout, and the motion relative to the objects (the object's motion relative
 to its start, the hand relative to the object, a ``put_*``'s release relative to the static
-box). A :class:`Layout` places the object's start and each static box on the table (x, y,
+box), and what the object is (its noun: an open vessel is held by its rim at any layout).
+A :class:`Layout` places the object's start and each static box on the table (x, y,
 yaw) in the reconstruction's world frame.
 
 Records and their file only: :mod:`warpskill.robot.skill_layout` derives a skill from a
@@ -25,7 +26,7 @@ from warpskill.contract.npz import read_npz, save_npz_atomic
 from warpskill.contract.reconstruction import FIELD_SHAPES as RECONSTRUCTION_SHAPES
 from warpskill.contract.reconstruction import SceneCounts
 
-__all__ = ["FIELD_SHAPES", "Layout", "LayoutError", "Skill", "SkillError"]
+__all__ = ["FIELD_SHAPES", "OPTIONAL_FIELDS", "Layout", "LayoutError", "Skill", "SkillError"]
 
 FIELD_SHAPES: dict[str, tuple[str | int, ...]] = {
     "action": (),
@@ -47,8 +48,14 @@ FIELD_SHAPES: dict[str, tuple[str | int, ...]] = {
     # the scene around the motion, as the reconstruction holds it
     **{key: RECONSTRUCTION_SHAPES[key] for key in ("static_pos", "static_rot", "static_size", "camera_K",
                                                   "camera_elevation", "camera_height", "image_size", "loss")},
+    "object_noun": (),
 }
 """Every key of ``skill.npz`` and its shape; ``N`` frames and ``K`` static boxes."""
+
+_STRING_FIELDS = ("action", "object_noun")
+
+OPTIONAL_FIELDS = {"object_noun": ""}
+"""Keys a file may lack (one written before the key), and the value they then take (noun unknown)."""
 
 
 class SkillError(ValueError):
@@ -140,7 +147,9 @@ class Skill(SceneCounts):
     the last one (``nan``: held to the end). ``release_offset`` (3,) [m] is the released object's
     centre (the last frame's where held to the end) minus the static box's centre (world axes), ``release_gap`` [m] the gap between them
     along the relation's side (:mod:`warpskill.robot.skill_layout`'s doc; zeros and 0 for
-    actions other than ``put_*``).
+    actions other than ``put_*``). ``object_noun`` is what the object is (the reconstruction's
+    ``object_noun``; "" unknown): a layout's reconstruction carries it, so that an open vessel
+    is held by its rim there as in the demonstration (:func:`~warpskill.robot.sizes.fit_sizes`).
     """
 
     action: str
@@ -167,10 +176,12 @@ class Skill(SceneCounts):
     camera_height: float
     image_size: np.ndarray
     loss: float
+    object_noun: str = ""
 
     def __post_init__(self) -> None:
         _check_fields({name: getattr(self, name) for name in FIELD_SHAPES})
         self.action = check_action(str(self.action))
+        self.object_noun = str(self.object_noun)
 
     def frames(self) -> tuple[int, int | None]:
         """The onset frame and the release frame (None: held to the end)."""
@@ -178,18 +189,22 @@ class Skill(SceneCounts):
         return k_on, None if not np.isfinite(self.release) else int(round(self.release * self.fps))
 
     def save(self, path: str | os.PathLike) -> None:
-        """Write ``skill.npz`` atomically (every key of :data:`FIELD_SHAPES`)."""
-        save_npz_atomic(path, {name: np.asarray(getattr(self, name)) for name in FIELD_SHAPES})
+        """Write ``skill.npz`` atomically: every key of :data:`FIELD_SHAPES`, but an unknown
+        ``object_noun`` (left out, a file is written as before the key)."""
+        save_npz_atomic(path, {name: np.asarray(getattr(self, name)) for name in FIELD_SHAPES
+                               if name != "object_noun" or self.object_noun})
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Skill":
-        """Read and check a ``skill.npz``.
+        """Read and check a ``skill.npz``; a missing optional key takes its :data:`OPTIONAL_FIELDS` value.
 
         Raises:
             SkillError: naming the file and the key, for a missing, unknown or malformed key.
             FileNotFoundError: ``path`` does not exist.
         """
         arrays = read_npz(path, SkillError)
+        for name, default in OPTIONAL_FIELDS.items():
+            arrays.setdefault(name, np.array(default))
         missing = [name for name in FIELD_SHAPES if name not in arrays]
         unknown = sorted(set(arrays) - set(FIELD_SHAPES))
         if missing or unknown:
@@ -212,7 +227,7 @@ def _check_fields(fields: Mapping[str, object]) -> None:
     """Check every key's shape (``N``, ``K`` bound by the first key that has them) and finiteness."""
     dims: dict[str, int] = {}
     for name, template in FIELD_SHAPES.items():
-        if name == "action":
+        if name in _STRING_FIELDS:
             continue
         array = np.asarray(fields[name])
         if array.dtype.kind not in "biuf":

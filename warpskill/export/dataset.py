@@ -33,7 +33,7 @@ import warpskill
 from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.evaluation import evaluate
 from warpskill.contract.reconstruction import Reconstruction, ReconstructionError
-from warpskill.contract.skill import LayoutError, SkillError
+from warpskill.contract.skill import LayoutError, Skill, SkillError
 from warpskill.export.lerobot import CODEBASE_VERSION, LeRobotWriter
 from warpskill.export.rollouts import (
     CAMERAS,
@@ -146,7 +146,9 @@ class Source:
 
     @property
     def object_noun(self) -> str | None:
-        """The object's noun: the demonstration's, else the options', else None."""
+        """The object's noun: the reconstruction's, else the demonstration's, else the options', else None."""
+        if str(self.recon.object_noun):
+            return str(self.recon.object_noun)
         if self.demonstration and self.demonstration["object_noun"]:
             return self.demonstration["object_noun"]
         return self.options.get("object_noun") if self.options else None
@@ -155,6 +157,15 @@ class Source:
     def options(self) -> dict | None:
         """The reconstruction's optimisation options (``OptimizeOptions`` JSON), None if not recorded."""
         return json.loads(str(self.recon.options)) if str(self.recon.options) else None
+
+    def skill(self) -> Skill:
+        """The reconstruction's skill, its object named by :attr:`object_noun` (an older
+        reconstruction without the noun takes the demonstration's: an open vessel is held by its rim).
+
+        Raises:
+            SkillError: no skill in the reconstruction (:func:`~warpskill.robot.skill_layout.skill_from`).
+        """
+        return dataclasses.replace(skill_from(self.recon), object_noun=self.object_noun or "")
 
 
 @dataclasses.dataclass
@@ -366,7 +377,7 @@ def _judge_skill(source: Source, request: ExportRequest, seed: int) -> tuple[Ski
     budget = request.episodes * request.attempts_per_episode
     tried: list[Attempt] = []
     try:
-        attempts = rollouts(skill_from(source.recon), seed=seed)
+        attempts = rollouts(source.skill(), seed=seed)
         while sum(a.success for a in tried) < request.episodes and len(tried) < budget:
             tried.append(next(attempts))
     except (SkillError, LayoutError) as error:  # no skill in it, or no layout of it fits the table

@@ -40,6 +40,11 @@ A carried object (``pick_up``, ``put_*``) whose path in a new layout would run i
 static box is lifted over it, as a robot would carry it: a reconstruction's path may graze
 a box's edge by a few centimetres.
 
+The skill keeps what the object is (the reconstruction's ``object_noun``), and the layout's
+reconstruction carries it: an open vessel too wide for the gripper is held by its rim at any
+layout, as in the demonstration's replay, and substituted only where no face or rim fits
+(:func:`~warpskill.robot.sizes.fit_sizes`).
+
 A :class:`~warpskill.contract.skill.Layout` places the object's start and each static box on the table
 (x, y, yaw) in the reconstruction's world frame; :func:`apply_skill` makes the reconstruction of the
 skill there, which retargeting, replays and :func:`~warpskill.contract.evaluation.evaluate`
@@ -228,7 +233,7 @@ def apply_skill(skill: Skill, layout: Layout) -> Reconstruction:
         object_pos=object_pos, object_rot=object_rot, object_size=size, static_pos=static_pos,
         static_rot=static_rot, static_size=skill.static_size, camera_K=skill.camera_K,
         camera_elevation=skill.camera_elevation, camera_height=skill.camera_height, image_size=skill.image_size,
-        action=skill.action, loss=skill.loss)
+        action=skill.action, loss=skill.loss, object_noun=np.array(skill.object_noun))
     _check_overlaps(recon)
     _check_relation(recon)
     return recon
@@ -515,4 +520,5 @@ def skill_from(recon: Reconstruction) -> Skill:
         hand_in_object_pos=hand_pos, hand_in_object_rot=hand_rot, release_offset=offset, release_gap=gap,
         static_pos=recon.static_pos.copy(), static_rot=recon.static_rot.copy(), static_size=recon.static_size.copy(),
         camera_K=recon.camera_K.copy(), camera_elevation=float(recon.camera_elevation),
-        camera_height=float(recon.camera_height), image_size=recon.image_size.copy(), loss=float(recon.loss))
+        camera_height=float(recon.camera_height), image_size=recon.image_size.copy(), loss=float(recon.loss),
+        object_noun=str(recon.object_noun))
