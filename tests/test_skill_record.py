@@ -89,6 +89,9 @@ def test_load_names_the_bad_key(tmp_path):
     np.savez(tmp_path / "bad.npz", **{**arrays, "object_motion_pos": arrays["object_motion_pos"][:-1]})
     with pytest.raises(SkillError, match="object_motion_pos: expected shape"):
         Skill.load(tmp_path / "bad.npz")
+    np.savez(tmp_path / "nouns.npz", **{**arrays, "object_noun": np.array(["mug", "cup"])})
+    with pytest.raises(SkillError, match="object_noun: expected one string"):
+        Skill.load(tmp_path / "nouns.npz")
 
 
 @pytest.mark.parametrize("action", ["push_left_to_right", "pull_right_to_left"])

@@ -228,6 +228,8 @@ def _check_fields(fields: Mapping[str, object]) -> None:
     dims: dict[str, int] = {}
     for name, template in FIELD_SHAPES.items():
         if name in _STRING_FIELDS:
+            if np.ndim(fields[name]) != 0:
+                raise SkillError(f"{name}: expected one string, got shape {np.shape(fields[name])}")
             continue
         array = np.asarray(fields[name])
         if array.dtype.kind not in "biuf":
