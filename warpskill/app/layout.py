@@ -18,7 +18,7 @@ from warpskill import assets
 from warpskill.app import files, outline as outlines
 from warpskill.app.running import STEPS, RunSettings, record_replay, run_clip
 from warpskill.contract import ACTIONS, DemonstrationError
-from warpskill.data.footage.outline_proposal import OutlineUnsure
+from warpskill.data import OutlineUnsure
 
 __all__ = ["build_page", "serve"]
 

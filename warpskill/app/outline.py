@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from warpskill.contract.vocabulary import HAND, OBJECT, static_role
-from warpskill.data.footage.outline_proposal import propose_outline, write_outline
+from warpskill.data import propose_outline, write_outline
 from warpskill.media import HAND_COLOR, OBJECT_COLOR, STATIC_COLOR
 
 __all__ = ["ROLES", "draft", "draw_outline", "outline_text", "parse_outline", "propose", "remove_role", "shown_scale",

@@ -17,10 +17,16 @@ import numpy as np
 from warpskill import visual  # a lazy package: the contact sheet loads on first use
 from warpskill.cli.common import Refused
 from warpskill.contract import DemonstrationError
-from warpskill.data.footage.outline_proposal import OutlineUnsure, propose_outline, write_outline
-from warpskill.data import read_recording, read_video
-from warpskill.data.recording import IMAGE_SEQUENCE_FPS, SOURCES
-from warpskill.data.readers.video import is_image_sequence
+from warpskill.data import (
+    IMAGE_SEQUENCE_FPS,
+    MASK_SOURCES,
+    OutlineUnsure,
+    is_image_sequence,
+    propose_outline,
+    read_recording,
+    read_video,
+    write_outline,
+)
 
 __all__ = ["add_recording_options", "prepare", "register"]
 
@@ -86,7 +92,7 @@ def prepare(args, demo_path: Path, sheet_path: Path, outline_path: Path | None =
             but, where the proposed outline is unsure, a picture of what was seen
             (``.unsure.png`` beside the demonstration).
     """
-    source = next((name for name in SOURCES if getattr(args, name) is not None), None)
+    source = next((name for name in MASK_SOURCES if getattr(args, name) is not None), None)
     proposal = None
     try:
         if source is None:

@@ -36,7 +36,7 @@ from warpskill.data.readers.mask_files import read_masks
 from warpskill.data.readers.polygons import read_polygons
 from warpskill.data.readers.video import is_image_sequence, read_video
 
-SOURCES = ("masks", "labels", "polygons", "boxes")
+MASK_SOURCES = ("masks", "labels", "polygons", "boxes")
 """The mask sources of :func:`prepare_recording`; at most one is given (none: the outline is proposed)."""
 
 PROPOSED = "proposed"
@@ -139,7 +139,7 @@ def read_recording(
             signal that is never on.
         FileNotFoundError: a file or folder does not exist.
     """
-    source, where = _mask_source(dict(zip(SOURCES, (masks, labels, polygons, boxes))), contact=contact,
+    source, where = _mask_source(dict(zip(MASK_SOURCES, (masks, labels, polygons, boxes))), contact=contact,
                                  detections=detections, video_id=video_id, frame=frame, action=action, outline=outline)
     frames, fps = _frames(video, fps)
     camera_K = _camera_matrix(intrinsics)
@@ -167,7 +167,7 @@ def _mask_source(sources: dict, *, contact, detections, video_id, frame, action:
     (:data:`PROPOSED`, None) for none; the options checked against it."""
     given = {name: value for name, value in sources.items() if value is not None}
     if len(given) > 1:
-        raise DemonstrationError(f"give at most one mask source of {', '.join(SOURCES)} (got {', '.join(given)})")
+        raise DemonstrationError(f"give at most one mask source of {', '.join(MASK_SOURCES)} (got {', '.join(given)})")
     if outline is not None and given:
         raise DemonstrationError(f"outline: only without a mask source (got {', '.join(given)})")
     if contact is not None and detections is not None:
