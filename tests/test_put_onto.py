@@ -10,6 +10,7 @@ import torch
 from warpskill.contract.demonstration import Demonstration
 from warpskill.engine.distances import support_height
 from warpskill.engine.records import Rollout
+from warpskill.engine.projection import camera_rotation, project
 from warpskill.engine.rotations import yaw_rotation
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.guess import ObjectDepth, initial_guess
@@ -18,15 +19,17 @@ from warpskill.optimizer.hypotheses import (
     best_simulation,
     chosen_simulation,
     read_evidence,
+    settled_fit,
     stage_a_candidates,
 )
-from warpskill.optimizer.inputs import carried_into_view, cut_by_static, rests_on_static, within_static_across
+from warpskill.optimizer.inputs import carried_into_view, cut_by_static, rests_on_static
 from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.pipeline import optimize
 from warpskill.optimizer.scene import (
     SceneTrajectories,
     ends_behind_static,
     in_front_of_back_penalty,
+    static_back,
     off_static_penalty,
     static_in_object_penalty,
 )
@@ -145,6 +148,27 @@ def test_the_on_static_guess_stands_the_object_on_a_static_box_that_reaches_unde
     assert torch.equal(as_enum.object_pos, guess.object_pos)  # the member and its value name the same guess
 
 
+
+def test_the_behind_guess_stands_the_object_on_the_ground_behind_a_box_as_tall_as_its_top_edge():
+    demo = make_demonstration("put_onto", seed=0, input="boxes")  # the same boxes, read the other way
+    masks, intrinsics = demo.mask_stack(60, 107), demo.intrinsics.resized(60, 107)
+    resting = rests_on_static(demo.mask_stack(*demo.image_size), demo.contact)
+    guess = initial_guess(masks, demo.contact, intrinsics, demo.num_static, object_depth="behind the static",
+                          resting=resting)
+    placed = torch.as_tensor(resting)
+    bottom = guess.object_pos[placed, 2] - 0.5 * guess.object_size[2]
+    assert float(bottom.abs().max()) < 5e-3  # on the ground
+    front = guess.object_pos[placed, 1].mean() - 0.5 * guess.object_size[1]  # where it rests, on average
+    assert float(front) > float(static_back(guess))
+    # its back's top edge on the static box's top row (where first seen), as the box says
+    top_back = torch.stack([guess.static_pos[0, 0], static_back(guess), guess.static_size[0, 2]])
+    in_camera = camera_rotation(guess.camera_elevation).T @ (top_back - torch.stack(
+        [torch.tensor(0.0), torch.tensor(0.0), guess.camera_height]).to(top_back))
+    row = float(project(in_camera[None].double(), intrinsics.K)[0, 1])
+    seen = masks[:, 2].any(axis=(1, 2))
+    static_rows = np.flatnonzero((masks[np.flatnonzero(seen)[0], 2] > 0.5).any(axis=1))
+    assert abs(row - static_rows.min()) <= 1.0
+
 @pytest.mark.slow
 def test_both_placements_go_through_the_physics(monkeypatch):
     starts = []
@@ -158,8 +182,10 @@ def test_both_placements_go_through_the_physics(monkeypatch):
     small = OptimizeConfig(iterations=3, init_iterations=3)
     demo = make_demonstration("put_onto", seed=0, input="boxes")
     optimize(demo, config=small, progress=False)
-    assert len(starts) == 2
-    assert not torch.equal(starts[0].object_pos, starts[1].object_pos)
+    assert len(starts) == 3  # stage (a)'s winner, on the static box, behind it
+    on_top, behind = starts[1], starts[2]
+    assert not torch.equal(starts[0].object_pos, on_top.object_pos)
+    assert on_top.object_pos[-1, 1] < static_back(on_top) < behind.object_pos[-1, 1]
     starts.clear()
     optimize(make_demonstration("put_in_front_of", seed=0, input="boxes"), config=small, progress=False)
     assert len(starts) == 1  # in front of the static box: nothing says it may stand on it
@@ -181,10 +207,10 @@ def test_an_object_that_covers_a_narrower_static_box_top_edge_is_tried_on_it_too
         seen = read_evidence(_box_demonstration(object_after, (20, 34, 24, 36)), {}, OptimizeConfig(), cpu)
         assert not seen.resting.any() and bool(seen.behind is not None)
         assert bool(seen.covering.any()) is covering
-        placements = [c.support for c in stage_a_candidates([seen], 0.45, cpu) if c.support is not None]
-        assert len(placements) == int(covering)
-        if covering:
-            assert placements[0].bool().tolist() == [False] * 12 + [True] * 8
+        placements = [c.placement for c in stage_a_candidates([seen], 0.45, cpu) if c.placement is not None]
+        assert [p.depth for p in placements] == [ObjectDepth.STATIC, ObjectDepth.BEHIND] * int(covering)
+        for placement in placements:
+            assert placement.frames.bool().tolist() == [False] * 12 + [True] * 8
 
 
 def _one_box_scene(object_z, object_size):
@@ -257,27 +283,25 @@ def test_an_object_behind_the_static_box_is_told_from_one_on_it():
     assert not ends_behind_static(turned)
 
 
-def test_only_an_object_within_the_static_box_columns_can_have_its_bottom_hidden_by_it():
-    # Bottom row 26 inside the static box (rows 20-34, columns 20-40) in both: an object
-    # within its columns may rest on it, or its bottom be hidden behind it; one wider than the
-    # box would show its bottom beside it, so behind is no contradiction there.
-    within = _masks((14, 26, 24, 36))
-    assert within_static_across(within, CONTACT).tolist() == [False] * 12 + [True] * 8
-    wider = _masks((14, 26, 14, 46))
-    assert rests_on_static(wider, CONTACT).any() and not within_static_across(wider, CONTACT).any()
-
-
-def test_ending_behind_contradicts_the_masks_only_where_the_static_box_could_hide_the_bottom():
+def test_on_top_and_behind_are_chosen_by_their_fit_after_the_release():
+    # Ending behind the box is no contradiction of a bottom edge inside its rows (a turned
+    # box's top edge dips): the fits decide, the better one wins either way.
     cpu = torch.device("cpu")
     behind = _one_box_scene(0.05, [0.1, 0.1, 0.1])
     behind.object_pos[-1, 1] = 0.2
     on_top = _one_box_scene(0.25, [0.1, 0.1, 0.1])
     results = [PhysicalRollout(scene, None, None, None) for scene in (behind, on_top)]  # only their ends are read
-    own = [PhysicsHypothesis(0, scene, CONTACT, None, None, fit=fit) for scene, fit in ((behind, 2.6), (on_top, 2.8))]
-    within = read_evidence(_box_demonstration((14, 26, 24, 36), STATIC), {}, OptimizeConfig(), cpu)
-    assert chosen_simulation(within, own, results) == 1  # the better fit ends behind: contradicted
-    wider = read_evidence(_box_demonstration((14, 26, 14, 46), STATIC), {}, OptimizeConfig(), cpu)
-    assert wider.resting.any() and chosen_simulation(wider, own, results) == 0
+    seen = read_evidence(_box_demonstration((14, 26, 24, 36), STATIC), {}, OptimizeConfig(), cpu)
+    assert seen.resting.any()
+    for fits, chosen in (((2.6, 2.8), 0), ((2.8, 2.6), 1)):
+        own = [PhysicsHypothesis(0, scene, CONTACT, None, None, fit=fit) for scene, fit in zip((behind, on_top), fits)]
+        assert chosen_simulation(seen, own, results) == chosen
+
+
+def test_the_settled_fit_leaves_out_the_frames_in_contact():
+    losses = torch.tensor([1.0, 9.0, 9.0, 2.0])
+    assert settled_fit(losses, np.array([False, True, True, False])) == 1.5
+    assert settled_fit(losses, np.ones(4, bool)) == 5.25  # no frame without contact: all of them
 
 
 def test_the_best_simulation_is_the_best_fit_the_masks_do_not_contradict():

@@ -22,18 +22,25 @@ from warpskill.engine.rotations import yaw_rotation
 from warpskill.geometry import frame_from_axis
 from warpskill.optimizer.measurements import TYPICAL_HAND_TILT, MaskGeometry, fill_missing, hand_depth
 from warpskill.optimizer.measurements import hand_tilt as measured_hand_tilt
-from warpskill.optimizer.scene import SceneTrajectories, static_poses
+from warpskill.optimizer.scene import MIN_STATIC_SIZE, SceneTrajectories, static_poses
 from warpskill.optimizer.weights import LossWeights
 
 
 class ObjectDepth(str, enum.Enum):
     """Where the object is after it was first seen (see :func:`initial_guess`): it keeps its
     resting depth, stands on the ground below its mask's bottom edge, or (only in the frames
-    :func:`warpskill.optimizer.inputs.rests_on_static` finds) on the static box's top."""
+    :func:`warpskill.optimizer.inputs.rests_on_static` finds) on the static box's top or on
+    the ground behind the box."""
 
     RESTING = "resting depth"
     GROUND = "on the ground"
     STATIC = "on the static"
+    BEHIND = "behind the static"
+
+    @property
+    def placed(self) -> bool:
+        """Whether this is a placement against the first static box (its top or its back)."""
+        return self in (ObjectDepth.STATIC, ObjectDepth.BEHIND)
 
 INITIAL_CAMERA_ELEVATION = 0.6  # [rad] the camera's look below the horizon, a person's view of a table
 CAMERA_HEIGHT_RANGE = (0.15, 1.5)  # [m] the camera heights a first guess may take: a table's scale
@@ -43,6 +50,7 @@ FRONT_FACE_SHARE = 0.6  # share of an upright cuboid's box height that is its fr
 CUBOID_HEIGHT_RANGE = (0.03, 0.4)  # [m] the heights a first guess may give a cuboid
 CUBOID_SIZE_RANGE = (0.03, 0.5)  # [m] the sizes a first guess may give a cuboid, each axis
 MIN_LONG_SIZE = 0.015  # [m] a long object's smallest first edge: above the size floor, where its gradient is alive
+BEHIND_GAP = 0.01  # [m] between the static box's back and an object placed behind it, in a first guess
 APPROACH_GROWTH = 1.25  # a carried cuboid's box this much wider than at first: it has come closer
 LONG_ASPECT = 2.5  # a typical width this many times the typical depth makes a noun long (its start lies turned)
 
@@ -98,7 +106,10 @@ def initial_guess(
     paper's Fig. 1: on top of a box, or behind it on the ground), so ``object_depth``
     names the hypothesis: it keeps its ``"resting depth"``, or stands ``"on the ground"``
     below its mask's bottom edge in every frame, or, in the ``resting`` frames after the
-    release, stands ``"on the static"`` box's top, the box reaching back (or forward) under it.
+    release, stands ``"on the static"`` box's top, the box reaching back (or forward) under it,
+    or on the ground ``"behind the static"`` box, the box ending in front of it and as tall as
+    its box's top edge says (one view cannot tell a flat deep box with the object on top from
+    a tall thin one with the object behind).
 
     Args:
         targets: (N, 2 + K, h, w) masks at the working resolution.
@@ -107,7 +118,7 @@ def initial_guess(
         num_static: K.
         object_depth: an :class:`ObjectDepth` (or its value).
         resting: (N,) bool, the frames where the object may rest on the first static box
-            (needed by ``"on the static"``).
+            (needed by ``"on the static"`` and ``"behind the static"``).
         hand_width: whether the hand mask's width measures its depth (not so for masks
             drawn from boxes); without it the camera starts at ``typical_camera_height``.
         carried: (N,) bool, frames in which the object may be in the hand (default: ``contact``).
@@ -121,16 +132,16 @@ def initial_guess(
             the scene scaled to match (:func:`_long_object`). None: upright, no yaw.
 
     Raises:
-        ValueError: an unknown ``object_depth``, or ``"on the static"`` without a static box
+        ValueError: an unknown ``object_depth``, or a placement against the static without a static box
             or resting frames.
     """
     if object_depth not in {depth.value for depth in ObjectDepth}:
         raise ValueError(f"object_depth must be one of {[depth.value for depth in ObjectDepth]}, not {object_depth!r}")
     object_depth = ObjectDepth(object_depth)
-    on_static = object_depth is ObjectDepth.STATIC
     carried = np.asarray(contact if carried is None else carried, dtype=bool)
-    if on_static and (num_static == 0 or resting is None or not np.any(resting)):
-        raise ValueError("object_depth 'on the static' needs a static box and frames where the object rests on it")
+    if object_depth.placed and (num_static == 0 or resting is None or not np.any(resting)):
+        raise ValueError(f"object_depth {object_depth.value!r} needs a static box and frames where the object rests "
+                         "against it")
     K = intrinsics.K
     R_wc = camera_rotation(torch.tensor(INITIAL_CAMERA_ELEVATION, dtype=torch.float64)).numpy()
     hand_geom = MaskGeometry(targets[:, 0])
@@ -140,19 +151,28 @@ def initial_guess(
     height = typical_camera_height if depth is None else _camera_height(depth, object_geom, carried, K, R_wc)
     camera = GuessCamera(K, R_wc, np.array([0.0, 0.0, height]), targets.shape[-1])
 
-    object_pos, object_size, _ = _cuboid_from_masks(object_geom, camera, carried, object_depth is ObjectDepth.GROUND)
+    on_ground = object_depth in (ObjectDepth.GROUND, ObjectDepth.BEHIND)
+    object_pos, object_size, _ = _cuboid_from_masks(object_geom, camera, carried, on_ground)
     lying = _long_object(object_pos, object_size, object_shape, object_geom, hand_geom, camera, carried,
                          np.asarray(contact, bool))
     object_pos, object_size, object_yaw, ruler = lying or (object_pos, object_size, 0.0, 1.0)
-    static_pos, static_size = [], []
+    static_pos, static_size, static_top = [], [], []
     for j in range(num_static):
-        pos, size, visible = _cuboid_from_masks(MaskGeometry(targets[:, 2 + j]), camera, carried, True)
-        static_pos.append(pos[np.flatnonzero(visible)[0]])
+        static_geom = MaskGeometry(targets[:, 2 + j])
+        pos, size, visible = _cuboid_from_masks(static_geom, camera, carried, True)
+        first = np.flatnonzero(visible)[0]
+        static_pos.append(pos[first])
         static_size.append(size)
-    if on_static:
+        static_top.append(np.array([0.5 * (static_geom.box[first, 0] + static_geom.box[first, 2]),
+                                    static_geom.box[first, 1]]))
+    if object_depth is ObjectDepth.STATIC:
         object_pos, static_pos[0], static_size[0] = _placed_on_static(
             object_pos, object_size, object_geom, np.asarray(contact, bool), resting, static_pos[0], static_size[0],
             camera)
+    elif object_depth is ObjectDepth.BEHIND:
+        object_pos, static_pos[0], static_size[0] = _placed_behind_static(
+            object_pos, object_size, object_geom, np.asarray(contact, bool), resting, static_pos[0], static_size[0],
+            static_top[0], camera)
     toward = measured_hand_tilt(hand_geom, K) if hand_width and hand_tilt else None
     hand_pos, hand_rot = _hand_poses(hand_geom, object_centroid, object_pos, camera,
                                      TYPICAL_HAND_TILT if toward is None else toward)
@@ -295,14 +315,59 @@ def _placed_on_static(
     depth moving from where the object started to where it rests); and the static box's
     centre (3,) and size (3,) [m] widened to reach under the object."""
     offset = np.array([0.0, 0.5 * object_size[1], 0.5 * object_size[2]])
-
-    def bottom_pixel(k: int) -> np.ndarray:
-        u0, _, u1, v1 = geom.box[k]
-        return np.array([0.5 * (u0 + u1), v1])
-
     pos = object_pos.copy()
     for k in np.flatnonzero(resting & geom.visible):
-        pos[k] = camera.plane_point(bottom_pixel(k), static_size[2])[0] + offset
+        pos[k] = camera.plane_point(_bottom_pixel(geom, k), static_size[2])[0] + offset
+    pos, rest = _carried_to_rest(pos, offset, geom, contact, resting, camera)
+    lo = np.minimum(static_pos[:2] - 0.5 * static_size[:2], rest[:2] - 0.5 * object_size[:2])
+    hi = np.maximum(static_pos[:2] + 0.5 * static_size[:2], rest[:2] + 0.5 * object_size[:2])
+    widened_pos, widened_size = static_pos.copy(), static_size.copy()
+    widened_pos[:2], widened_size[:2] = 0.5 * (lo + hi), hi - lo
+    return pos, widened_pos, widened_size
+
+
+def _placed_behind_static(
+    object_pos: np.ndarray, object_size: np.ndarray, geom: MaskGeometry, contact: np.ndarray, resting: np.ndarray,
+    static_pos: np.ndarray, static_size: np.ndarray, static_top: np.ndarray, camera: GuessCamera,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Object centres (N, 3) [m] on the ground behind the static box in the ``resting`` frames
+    (below the mask's bottom edge, at least :data:`BEHIND_GAP` past the box's front plus
+    :data:`~warpskill.optimizer.scene.MIN_STATIC_SIZE`), carried there during the contact; and
+    the static box's centre (3,) and size (3,) [m] ending :data:`BEHIND_GAP` in front of the
+    object, as tall as its box's top edge ``static_top`` (2,) [px, the edge's middle] puts
+    its back's top edge."""
+    pos = object_pos.copy()
+    front = static_pos[1] - 0.5 * static_size[1]
+    nearest = front + MIN_STATIC_SIZE + BEHIND_GAP + 0.5 * object_size[1]  # the object's least centre depth
+    placed = np.flatnonzero(resting)
+    pos[placed, 1] = np.maximum(pos[placed, 1], nearest)
+    offset = np.array([0.0, 0.5 * object_size[1], 0.5 * object_size[2]])
+    pos, rest = _carried_to_rest(pos, offset, geom, contact, resting, camera)
+    back = rest[1] - 0.5 * object_size[1] - BEHIND_GAP
+    ray = camera.ray(static_top)
+    top = camera.position[2] + (back - camera.position[1]) / max(ray[1], MIN_RAY_DESCENT) * ray[2]
+    size = static_size.copy()
+    size[1] = back - front
+    size[2] = float(np.clip(top, *CUBOID_HEIGHT_RANGE))
+    centre = np.array([static_pos[0], 0.5 * (front + back), 0.5 * size[2]])
+    return pos, centre, size
+
+
+def _bottom_pixel(geom: MaskGeometry, k: int) -> np.ndarray:
+    """The middle (2,) [px] of frame ``k``'s mask box's bottom edge."""
+    u0, _, u1, v1 = geom.box[k]
+    return np.array([0.5 * (u0 + u1), v1])
+
+
+def _carried_to_rest(
+    pos: np.ndarray, offset: np.ndarray, geom: MaskGeometry, contact: np.ndarray, resting: np.ndarray,
+    camera: GuessCamera,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Object centres (N, 3) [m] from ``pos``: the ``resting`` frames where the mask is gone at
+    the mean rest of those where it shows, and during the ``contact`` each visible frame on its
+    bottom pixel's ray, its camera depth moving from where the object started to where it
+    rests (``offset`` (3,) [m]: from the bottom's middle to the centre). Returns them and the rest (3,)."""
+    pos = pos.copy()
     rest = pos[resting & geom.visible].mean(0) if (resting & geom.visible).any() else pos[resting].mean(0)
     pos[resting & ~geom.visible] = rest
     held = np.flatnonzero(contact)
@@ -311,12 +376,8 @@ def _placed_on_static(
         start, end = depth(pos[held[0]] - offset), depth(rest - offset)
         for k in held[geom.visible[held]]:
             share = (k - held[0]) / (held[-1] + 1 - held[0])
-            pos[k] = camera.position + ((1 - share) * start + share * end) * camera.ray(bottom_pixel(k)) + offset
-    lo = np.minimum(static_pos[:2] - 0.5 * static_size[:2], rest[:2] - 0.5 * object_size[:2])
-    hi = np.maximum(static_pos[:2] + 0.5 * static_size[:2], rest[:2] + 0.5 * object_size[:2])
-    widened_pos, widened_size = static_pos.copy(), static_size.copy()
-    widened_pos[:2], widened_size[:2] = 0.5 * (lo + hi), hi - lo
-    return pos, widened_pos, widened_size
+            pos[k] = camera.position + ((1 - share) * start + share * end) * camera.ray(_bottom_pixel(geom, k)) + offset
+    return pos, rest
 
 
 def _hand_poses(

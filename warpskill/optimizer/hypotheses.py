@@ -3,19 +3,20 @@
 One view leaves some things open (the paper's Fig. 1): where the object is after it was
 first seen (:class:`~warpskill.optimizer.guess.ObjectDepth`), whether the hand
 still holds it after the contact signal ends, and whether it was put on the static box or
-behind it. :func:`warpskill.optimize` fits each hypothesis and keeps the one the masks
-support best:
+behind it (a :class:`Placement` each). :func:`warpskill.optimize` fits each hypothesis and
+keeps the one the masks support best after the release:
 
 1. :func:`read_evidence`: per demonstration, the masks and what they say of those questions;
 2. :func:`stage_a_candidates`: one :class:`Candidate` per object-depth hypothesis;
 3. :func:`stage_a_winners`: per demonstration, the rival with the lowest stage (a) loss;
 4. :func:`physics_hypotheses`: one :class:`PhysicsHypothesis` per start (the winner, and
-   each placement on the static box) and contact signal variant;
+   each placement against the static box) and contact signal variant;
 5. :func:`chosen_simulation`: the simulation that matches the masks best.
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, replace
 from typing import Sequence
 
@@ -32,7 +33,6 @@ from warpskill.optimizer.inputs import (
     cut_by_static,
     held_after_contact,
     rests_on_static,
-    within_static_across,
     working_inputs,
 )
 from warpskill.optimizer.scene import (
@@ -45,6 +45,8 @@ from warpskill.optimizer.scene import (
 from warpskill.optimizer.stage_a import InitialParameters
 from warpskill.optimizer.stage_b import PhysicalRollout, PhysicalScene
 from warpskill.optimizer.weights import LossWeights
+
+logger = logging.getLogger(__name__)
 
 
 def _on(device: torch.device, frames: np.ndarray) -> torch.Tensor | None:
@@ -72,8 +74,6 @@ class Evidence:
             (:func:`~warpskill.optimizer.inputs.cut_by_static`); None when there are none.
         covering: (N,) bool, the frames of ``behind`` where the object's box spans the
             static's (:func:`~warpskill.optimizer.inputs.covers_static_top`).
-        enclosed: (N,) bool, frames after the release where the object's box lies within the
-            static's columns (:func:`~warpskill.optimizer.inputs.within_static_across`).
         typical_shape: [m] the typical size of the object's noun as (height, width, depth)
             where its size prior applies (``weights.object_noun_size`` on; a long object's
             first guess lies in its proportions, :func:`~warpskill.optimizer.guess.initial_guess`);
@@ -91,7 +91,6 @@ class Evidence:
     resting: np.ndarray
     behind: torch.Tensor | None
     covering: np.ndarray
-    enclosed: np.ndarray
     typical_shape: tuple[float, float, float] | None = None
     static_typical_shapes: tuple[tuple[float, float, float] | None, ...] = ()
 
@@ -117,10 +116,13 @@ class Evidence:
         it may rest on it, else where it covers the box's top edge (``covering``)."""
         return self.resting if self.resting.any() else self.covering
 
-    def behind_prior(self, support: torch.Tensor | None) -> torch.Tensor | None:
-        """``behind`` for a hypothesis with ``support`` (see :class:`Candidate`): none for a
-        placement on the static box, the other answer to the same frames."""
-        return self.behind if support is None else None
+    def placement_priors(self, placement: Placement | None) -> tuple[torch.Tensor | None, torch.Tensor | None]:
+        """The frames (N,) in which a hypothesis with ``placement`` has the object stand on the
+        static box and those in which it stands behind it (each None where none): a placement's
+        own frames, else, with no placement, ``behind``."""
+        if placement is None:
+            return None, self.behind
+        return (placement.frames, None) if placement.depth is ObjectDepth.STATIC else (None, placement.frames)
 
 
 def read_evidence(demo: Demonstration, known: dict[str, float], config: OptimizeConfig,
@@ -140,14 +142,27 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
     if weights.static_noun_size > 0:
         static_shapes = tuple(None if size is None else (size.height, size.width, size.depth) for size in statics)
     held = held_after_contact(inputs.masks.cpu().numpy(), inputs.contact_signal)
-    rest = cut = covering = enclosed = np.zeros(demo.num_frames, dtype=bool)
+    rest = cut = covering = np.zeros(demo.num_frames, dtype=bool)
     if demo.num_static:
         full = demo.mask_channels()
         rest, cut = rests_on_static(full, inputs.contact_signal), cut_by_static(full, inputs.contact_signal)
         covering = covers_static_top(full, inputs.contact_signal)
-        enclosed = within_static_across(full, inputs.contact_signal)
-    return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut), covering, enclosed,
+    return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut), covering,
                     typical_shape, static_shapes)
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a hypothesis puts the object against the first static box after the release.
+
+    Attributes:
+        depth: :attr:`ObjectDepth.STATIC` (on its top) or :attr:`ObjectDepth.BEHIND` (on the
+            ground behind it).
+        frames: (N,) 1 in the frames where it stands there (:attr:`Evidence.placement`).
+    """
+
+    depth: ObjectDepth
+    frames: torch.Tensor
 
 
 @dataclass
@@ -157,15 +172,15 @@ class Candidate:
     Attributes:
         demo: the demonstration's index.
         guess: the first scene (:func:`~warpskill.optimizer.guess.initial_guess`).
-        support: (N,) 1 in the frames where the object stands on the static box (the
-            hypothesis "on the static", which goes on to the physics whatever its loss);
-            None for the depth hypotheses that are rivals (the lowest loss wins).
+        placement: where the object stands against the static box (such a hypothesis goes on
+            to the physics whatever its loss); None for the depth hypotheses that are rivals
+            (the lowest loss wins).
         parameters: stage (a)'s parameters, started at ``guess``.
     """
 
     demo: int
     guess: SceneTrajectories
-    support: torch.Tensor | None
+    placement: Placement | None
     parameters: InitialParameters
 
 
@@ -173,19 +188,20 @@ def stage_a_candidates(evidence: Sequence[Evidence], typical_camera_height: floa
                        device: torch.device) -> list[Candidate]:
     """Every demonstration from each object-depth hypothesis, demonstration by demonstration.
 
-    "On the static" is tried only where the object may stand on the static box's top
-    (:attr:`Evidence.placement`), without the prior that puts it behind the box; a guess equal
-    to an earlier one of the same demonstration (the object's box bottom stays on one row)
-    is fitted once. The hand's tilt read off its foreshortening starts the hand only where
-    the scale is free: with a known length it was a worse start.
+    "On the static" and "behind the static" are tried only where the object may stand on the
+    static box's top (:attr:`Evidence.placement`): the same boxes fit a flat deep box with the
+    object on it and a tall thin one with the object behind it. A guess equal to an earlier
+    one of the same demonstration (the object's box bottom stays on one row) is fitted once.
+    The hand's tilt read off its foreshortening starts the hand only where the scale is free:
+    with a known length it was a worse start.
     """
     candidates: list[Candidate] = []
     for i, seen in enumerate(evidence):
         given = seen.inputs
         for hypothesis in ObjectDepth:
-            on_static = hypothesis is ObjectDepth.STATIC
             placed = seen.placement
-            if on_static and not placed.any():
+            if hypothesis.placed and not placed.any():
+                continue
                 continue
             guess = initial_guess(given.masks.cpu().numpy(), given.contact_signal, given.intrinsics,
                                   seen.demo.num_static, object_depth=hypothesis, resting=placed,
@@ -194,19 +210,21 @@ def stage_a_candidates(evidence: Sequence[Evidence], typical_camera_height: floa
                                   typical_camera_height=typical_camera_height, object_shape=seen.typical_shape)
             if any(c.demo == i and guess.same_as(c.guess) for c in candidates):
                 continue
-            support = torch.as_tensor(placed, dtype=torch.float32, device=device) if on_static else None
-            candidates.append(Candidate(i, guess, support, InitialParameters(guess, seen.known).to(device)))
+            placement = None
+            if hypothesis.placed:
+                placement = Placement(hypothesis, torch.as_tensor(placed, dtype=torch.float32, device=device))
+            candidates.append(Candidate(i, guess, placement, InitialParameters(guess, seen.known).to(device)))
     return candidates
 
 
 def rival_groups(candidates: Sequence[Candidate]) -> list[int | None]:
-    """Each candidate's group of rivals (its demonstration), None for a placement on the static box."""
-    return [c.demo if c.support is None else None for c in candidates]
+    """Each candidate's group of rivals (its demonstration), None for a placement against the static box."""
+    return [c.demo if c.placement is None else None for c in candidates]
 
 
 def stage_a_winners(candidates: Sequence[Candidate], losses: Sequence[float], num_demos: int) -> list[int]:
     """Per demonstration, the index of its rival candidate with the lowest stage (a) loss."""
-    return [min((j for j, c in enumerate(candidates) if c.demo == i and c.support is None), key=lambda j: losses[j])
+    return [min((j for j, c in enumerate(candidates) if c.demo == i and c.placement is None), key=lambda j: losses[j])
             for i in range(num_demos)]
 
 
@@ -220,40 +238,41 @@ class PhysicsHypothesis:
         signal: (N,) bool, the contact signal variant: as given, or extended to the video's
             end where the object may still be held.
         contact: ``signal`` as (N,) floats on the device.
-        support: (N,) 1 where the object is to stand on the static box (the start is that
+        placement: where the object is to stand against the static box (the start is that
             placement); None for stage (a)'s winner.
         scene: its physics parameters (set by the pipeline, which weighs the spline's start
             by how well stage (a) matched each frame's hand).
-        fit: the perceptual loss of its final simulation (set by the pipeline).
+        fit: the perceptual loss of its final simulation where the object is left to the
+            physics (:func:`settled_fit`; set by the pipeline).
     """
 
     demo: int
     start: SceneTrajectories
     signal: np.ndarray
     contact: torch.Tensor
-    support: torch.Tensor | None
+    placement: Placement | None
     scene: PhysicalScene | None = None
     fit: float | None = None
 
 
 def physics_hypotheses(evidence: Sequence[Evidence], candidates: Sequence[Candidate], winners: Sequence[int],
                        device: torch.device) -> list[PhysicsHypothesis]:
-    """Per demonstration, each start (stage (a)'s winner and each placement on the static box)
+    """Per demonstration, each start (stage (a)'s winner and each placement against the static box)
     with each contact signal (as given and, where the object may still be held after it
     ends, extended to the video's end)."""
     hypotheses = []
     for i, seen in enumerate(evidence):
         signal = seen.inputs.contact_signal
         variants = [signal] + ([signal | seen.held] if seen.held.any() else [])
-        starts = [(candidates[winners[i]], None)] + [(c, c.support) for c in candidates
-                                                     if c.demo == i and c.support is not None]
+        starts = [(candidates[winners[i]], None)] + [(c, c.placement) for c in candidates
+                                                     if c.demo == i and c.placement is not None]
         hand_seen = (seen.inputs.masks[:, 0] > 0.5).flatten(1).any(1).cpu().numpy()
-        for candidate, support in starts:
+        for candidate, placement in starts:
             start = candidate.parameters.scene().detached()
             for variant in variants:
                 contact = torch.as_tensor(variant, dtype=torch.float32, device=device)
                 hypotheses.append(PhysicsHypothesis(i, carried_start(start, signal, variant, hand_seen), variant,
-                                                    contact, support))
+                                                    contact, placement))
     return hypotheses
 
 
@@ -276,6 +295,19 @@ def carried_start(start: SceneTrajectories, signal: np.ndarray, variant: np.ndar
     return replace(start, hand_pos=hand_pos)
 
 
+def settled_fit(frame_losses: torch.Tensor, contact: np.ndarray) -> float:
+    """The mean of a simulation's perceptual ``frame_losses`` (N,) over the frames outside the
+    ``contact`` signal (N,) as given (over all where it has none outside).
+
+    There the hypotheses of one demonstration differ in what they claim (where the object
+    rests: on the static box or behind it, in the hand or dropped); during the contact each
+    follows the hand the same way, and how closely its simulated grasp keeps up says nothing
+    of where the object was put.
+    """
+    free = torch.as_tensor(~np.asarray(contact, bool), device=frame_losses.device)
+    return float(frame_losses[free].mean() if free.any() else frame_losses.mean())
+
+
 def unseen_before_contact(seen: Evidence, signal: np.ndarray) -> bool:
     """Whether the object's mask is empty in every frame before ``signal``'s (N,) onset."""
     onset = np.flatnonzero(signal)
@@ -289,22 +321,24 @@ assumes is contradicted (:func:`chosen_simulation`)."""
 
 def chosen_simulation(seen: Evidence, own: Sequence[PhysicsHypothesis], results: Sequence[PhysicalRollout]) -> int:
     """Index into ``own`` (one demonstration's hypotheses, with their final ``results``) of the
-    simulation to keep: the best fit among those the masks do not contradict.
-
-    Where the masks show the object's bottom inside the static's box after the release, a
-    simulation that ends with the object behind the box contradicts them: the renderer draws
-    the object whole, but the box would hide it there. Only where the object's box lies
-    within the static's columns: an object wider than the box behind it shows its bottom
-    beside the box.
+    simulation to keep: the best fit (:func:`settled_fit`) among those the masks do not
+    contradict. The object on the static box and the object behind it are compared by their
+    fits alone: the renderer hides what the box hides, so an object's bottom edge inside the
+    box's rows says "on top" only where no box in front explains it (a turned box's top edge
+    dips below its box's top row).
 
     Where the object may still be held after the contact signal ends, a simulation of the
     signal as given (the object released) that ends the object more than :data:`DROP` lower
     than stage (a) does contradicts them too: stage (a) fits each frame's masks without
     physics, and an object it leaves in the air at the end, which the release drops, was held.
     """
-    hidden_bottom = bool(seen.resting.any()) and bool(seen.enclosed.any())
-    contradicted = [(hidden_bottom and ends_behind_static(result.scene)) or drops_a_held_object(seen, h, result)
-                    for h, result in zip(own, results)]
+    contradicted = [drops_a_held_object(seen, h, result) for h, result in zip(own, results)]
+    if logger.isEnabledFor(logging.DEBUG):
+        for h, result, against in zip(own, results, contradicted):
+            logger.debug("hypothesis %s, contact in %d frames: fit %.5f, ends %s the static%s",
+                         "stage (a)" if h.placement is None else h.placement.depth.value, int(h.signal.sum()), h.fit,
+                         "behind" if seen.demo.num_static and ends_behind_static(result.scene) else "not behind",
+                         ", contradicted" if against else "")
     return best_simulation([h.fit for h in own], contradicted)
 
 

@@ -328,18 +328,6 @@ def covers_static_top(masks: np.ndarray, contact: np.ndarray, *, min_frames: int
     return _after_release(masks, contact, min_frames, rule, share=0.8)
 
 
-def within_static_across(masks: np.ndarray, contact: np.ndarray, *, min_frames: int = 2) -> np.ndarray:
-    """(N,) bool: frames after the release in which the object's box lies within the first
-    static box's columns (to a tenth of the object's width on each side), in at least 80 %
-    of them. Only there can the static box hide the object's bottom: beside a narrower box
-    the bottom of an object behind it shows."""
-    def rule(obj: np.ndarray, static: np.ndarray, height: np.ndarray) -> np.ndarray:
-        margin = 0.1 * (obj[:, 2] - obj[:, 0])
-        return (obj[:, 0] >= static[:, 0] - margin) & (obj[:, 2] <= static[:, 2] + margin)
-
-    return _after_release(masks, contact, min_frames, rule, share=0.8)
-
-
 def _at_top_edge(obj: np.ndarray, static: np.ndarray, height: np.ndarray) -> np.ndarray:
     """Whether the object's boxes (n, 4) have their bottom row at the static's boxes' top edge:
     from a quarter of the static's height ``height`` (n,) [px] above it to a tenth below it."""

@@ -38,6 +38,7 @@ from warpskill.optimizer.hypotheses import (
     physics_hypotheses,
     read_evidence,
     rival_groups,
+    settled_fit,
     stage_a_candidates,
     stage_a_winners,
     unseen_before_contact,
@@ -48,7 +49,7 @@ from warpskill.optimizer.losses import MaskTargets, masks_loss
 from warpskill.optimizer.options import OptimizeOptions
 
 logger = logging.getLogger(__name__)
-from warpskill.optimizer.scene import SceneTrajectories, perceptual_loss
+from warpskill.optimizer.scene import SceneTrajectories, frame_perceptual_losses
 from warpskill.optimizer.stage_a import initial_objective
 from warpskill.optimizer.stage_b import PhysicalRollout, make_physical_scene, physical_objective
 
@@ -156,7 +157,9 @@ def optimize_many(
     with torch.no_grad():
         results, rendered = simulate(list(range(len(hypotheses))))
         for h, masks in zip(hypotheses, rendered):
-            h.fit = float(perceptual_loss(masks, evidence[h.demo].inputs.targets, config.weights))
+            seen = evidence[h.demo]
+            h.fit = settled_fit(frame_perceptual_losses(masks, seen.inputs.targets, config.weights),
+                                seen.inputs.contact_signal)
     return [_chosen_reconstruction(i, seen, hypotheses, results, losses, options) for i, seen in enumerate(evidence)]
 
 
@@ -222,7 +225,7 @@ def _stage_a_objective(candidates: Sequence[Candidate], evidence: Sequence[Evide
                                [e.inputs.targets for e in seen])
         return [
             initial_objective(scene, masks, e.inputs.targets, e.inputs.contact, e.demo.fps, e.weights, e.uncertain,
-                              candidates[j].support, e.behind_prior(candidates[j].support), e.typical_edges,
+                              *e.placement_priors(candidates[j].placement), e.typical_edges,
                               e.static_typical_edges)
             for j, scene, masks, e in zip(live, scenes, rendered, seen)
         ]
@@ -286,7 +289,7 @@ def _stage_b_objective(hypotheses: Sequence[PhysicsHypothesis], evidence: Sequen
         for b, result, masks in zip(live, results, rendered):
             h, e = hypotheses[b], evidence[hypotheses[b].demo]
             terms.append(physical_objective(result, masks, e.inputs.targets, h.contact, e.inputs.object_visible,
-                                            e.weights, h.support, e.behind_prior(h.support), e.typical_edges,
+                                            e.weights, *e.placement_priors(h.placement), e.typical_edges,
                                             e.static_typical_edges))
         return terms
 

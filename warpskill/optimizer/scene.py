@@ -70,13 +70,19 @@ def perceptual_loss(rendered: torch.Tensor | MaskProfile, targets: MaskTargets, 
     rendered masks or their :class:`~warpskill.optimizer.losses.MaskProfile`; the channels
     drawn from boxes (``targets.boxed``) compare boxes (:func:`box_loss`), and parts known to
     be out of sight (``targets.absent``) are asked to vanish (:func:`hidden_loss`)."""
+    return frame_perceptual_losses(rendered, targets, weights).mean()
+
+
+def frame_perceptual_losses(rendered: torch.Tensor | MaskProfile, targets: MaskTargets,
+                            weights: LossWeights) -> torch.Tensor:
+    """:func:`perceptual_loss` per frame, (N,): the channels' weighted dIoU summed."""
     per_mask = masks_loss(rendered, targets)  # (N, C)
     channel_weights = torch.tensor(
         [weights.hand, weights.object] + [weights.static] * (per_mask.shape[1] - 2),
         dtype=per_mask.dtype,
         device=per_mask.device,
     )
-    return (per_mask * channel_weights).sum(1).mean()
+    return (per_mask * channel_weights).sum(1)
 
 
 class SceneShape(torch.nn.Module):
