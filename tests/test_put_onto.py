@@ -22,7 +22,7 @@ from warpskill.optimizer.hypotheses import (
     settled_fit,
     stage_a_candidates,
 )
-from warpskill.optimizer.inputs import carried_into_view, cut_by_static, rests_on_static
+from warpskill.optimizer.inputs import below_static_top_face, carried_into_view, cut_by_static, rests_on_static
 from warpskill.optimizer.losses import MaskTargets
 from warpskill.optimizer.pipeline import optimize
 from warpskill.optimizer.scene import (
@@ -283,19 +283,35 @@ def test_an_object_behind_the_static_box_is_told_from_one_on_it():
     assert not ends_behind_static(turned)
 
 
-def test_on_top_and_behind_are_chosen_by_their_fit_after_the_release():
-    # Ending behind the box is no contradiction of a bottom edge inside its rows (a turned
-    # box's top edge dips): the fits decide, the better one wins either way.
+def test_on_top_and_behind_are_chosen_by_their_fit_unless_no_box_could_hide_the_bottom():
+    # Bottom row 24 within the static box's top face (rows 20-34: its upper 0.4): behind the
+    # box is as good an answer as on it (a turned box's far edge dips), the fits decide. Bottom
+    # row 28, deeper than the top face and within the box's columns: nothing hides it there,
+    # so ending behind contradicts the masks; beside the box (a wider object) it does not.
     cpu = torch.device("cpu")
     behind = _one_box_scene(0.05, [0.1, 0.1, 0.1])
     behind.object_pos[-1, 1] = 0.2
     on_top = _one_box_scene(0.25, [0.1, 0.1, 0.1])
     results = [PhysicalRollout(scene, None, None, None) for scene in (behind, on_top)]  # only their ends are read
-    seen = read_evidence(_box_demonstration((14, 26, 24, 36), STATIC), {}, OptimizeConfig(), cpu)
-    assert seen.resting.any()
-    for fits, chosen in (((2.6, 2.8), 0), ((2.8, 2.6), 1)):
-        own = [PhysicsHypothesis(0, scene, CONTACT, None, None, fit=fit) for scene, fit in zip((behind, on_top), fits)]
-        assert chosen_simulation(seen, own, results) == chosen
+
+    def fitting(fits):
+        return [PhysicsHypothesis(0, scene, CONTACT, None, None, fit=fit) for scene, fit in zip((behind, on_top), fits)]
+
+    shallow = read_evidence(_box_demonstration((12, 24, 24, 36), STATIC), {}, OptimizeConfig(), cpu)
+    assert shallow.resting.any() and not shallow.below_top_face.any()
+    assert chosen_simulation(shallow, fitting((2.6, 2.8)), results) == 0
+    assert chosen_simulation(shallow, fitting((2.8, 2.6)), results) == 1
+    deep = read_evidence(_box_demonstration((14, 28, 24, 36), STATIC), {}, OptimizeConfig(), cpu)
+    assert deep.below_top_face.any() and chosen_simulation(deep, fitting((2.6, 2.8)), results) == 1
+    wider = read_evidence(_box_demonstration((14, 28, 14, 46), STATIC), {}, OptimizeConfig(), cpu)
+    assert wider.resting.any() and not wider.below_top_face.any()
+    assert chosen_simulation(wider, fitting((2.6, 2.8)), results) == 0
+
+
+def test_an_object_bottom_below_the_static_top_face_within_its_columns_is_found_after_the_release():
+    assert below_static_top_face(_masks((14, 28, 24, 36)), CONTACT).tolist() == [False] * 12 + [True] * 8
+    assert not below_static_top_face(_masks((12, 24, 24, 36)), CONTACT).any()  # within the top face
+    assert not below_static_top_face(_masks((14, 28, 14, 46)), CONTACT).any()  # wider: its bottom beside the box
 
 
 def test_the_settled_fit_leaves_out_the_frames_in_contact():

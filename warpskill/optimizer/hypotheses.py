@@ -32,6 +32,7 @@ from warpskill.optimizer.inputs import (
     covers_static_top,
     cut_by_static,
     held_after_contact,
+    below_static_top_face,
     rests_on_static,
     working_inputs,
 )
@@ -74,6 +75,9 @@ class Evidence:
             (:func:`~warpskill.optimizer.inputs.cut_by_static`); None when there are none.
         covering: (N,) bool, the frames of ``behind`` where the object's box spans the
             static's (:func:`~warpskill.optimizer.inputs.covers_static_top`).
+        below_top_face: (N,) bool, frames after the release where the object's bottom lies
+            deeper in the static's box than its top face reaches, within its columns
+            (:func:`~warpskill.optimizer.inputs.below_static_top_face`): no box hides it there.
         typical_shape: [m] the typical size of the object's noun as (height, width, depth)
             where its size prior applies (``weights.object_noun_size`` on; a long object's
             first guess lies in its proportions, :func:`~warpskill.optimizer.guess.initial_guess`);
@@ -91,6 +95,7 @@ class Evidence:
     resting: np.ndarray
     behind: torch.Tensor | None
     covering: np.ndarray
+    below_top_face: np.ndarray
     typical_shape: tuple[float, float, float] | None = None
     static_typical_shapes: tuple[tuple[float, float, float] | None, ...] = ()
 
@@ -142,12 +147,13 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
     if weights.static_noun_size > 0:
         static_shapes = tuple(None if size is None else (size.height, size.width, size.depth) for size in statics)
     held = held_after_contact(inputs.masks.cpu().numpy(), inputs.contact_signal)
-    rest = cut = covering = np.zeros(demo.num_frames, dtype=bool)
+    rest = cut = covering = below = np.zeros(demo.num_frames, dtype=bool)
     if demo.num_static:
         full = demo.mask_channels()
         rest, cut = rests_on_static(full, inputs.contact_signal), cut_by_static(full, inputs.contact_signal)
         covering = covers_static_top(full, inputs.contact_signal)
-    return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut), covering,
+        below = below_static_top_face(full, inputs.contact_signal)
+    return Evidence(demo, inputs, known, weights, held, _on(device, held), rest, _on(device, cut), covering, below,
                     typical_shape, static_shapes)
 
 
@@ -323,16 +329,20 @@ def chosen_simulation(seen: Evidence, own: Sequence[PhysicsHypothesis], results:
     """Index into ``own`` (one demonstration's hypotheses, with their final ``results``) of the
     simulation to keep: the best fit (:func:`settled_fit`) among those the masks do not
     contradict. The object on the static box and the object behind it are compared by their
-    fits alone: the renderer hides what the box hides, so an object's bottom edge inside the
-    box's rows says "on top" only where no box in front explains it (a turned box's top edge
-    dips below its box's top row).
+    fits: the renderer hides what the box hides, and an object's bottom edge inside the box's
+    rows may be that of an object behind it where the box's outline dips (a turned box's far
+    edge). Deeper than the box's top face reaches, within its columns
+    (:attr:`Evidence.below_top_face`), no box can hide it: a simulation that ends with the
+    object behind the box contradicts the masks there.
 
     Where the object may still be held after the contact signal ends, a simulation of the
     signal as given (the object released) that ends the object more than :data:`DROP` lower
     than stage (a) does contradicts them too: stage (a) fits each frame's masks without
     physics, and an object it leaves in the air at the end, which the release drops, was held.
     """
-    contradicted = [drops_a_held_object(seen, h, result) for h, result in zip(own, results)]
+    unhidden = bool(seen.below_top_face.any())
+    contradicted = [(unhidden and ends_behind_static(result.scene)) or drops_a_held_object(seen, h, result)
+                    for h, result in zip(own, results)]
     if logger.isEnabledFor(logging.DEBUG):
         for h, result, against in zip(own, results, contradicted):
             logger.debug("hypothesis %s, contact in %d frames: fit %.5f, ends %s the static%s",

@@ -328,6 +328,30 @@ def covers_static_top(masks: np.ndarray, contact: np.ndarray, *, min_frames: int
     return _after_release(masks, contact, min_frames, rule, share=0.8)
 
 
+TOP_FACE_SHARE = 0.4
+"""The upper share of an upright box's image box that its top face may fill: the complement of
+the first guess's front face (:data:`~warpskill.optimizer.guess.FRONT_FACE_SHARE`)."""
+
+
+def below_static_top_face(masks: np.ndarray, contact: np.ndarray, *, min_frames: int = 2) -> np.ndarray:
+    """(N,) bool: frames after the release in which the object's bottom row lies deeper in the
+    first static box than its top face reaches (more than :data:`TOP_FACE_SHARE` of its height
+    below its top edge) and its box lies within the static's columns (to a tenth of the
+    object's width on each side), in at least 80 % of them.
+
+    An object behind a box shows its bottom only above the box's outline, whose top edge dips
+    below the box's top row at most across the top face (a turned box's far edge); deeper and
+    within the box's columns, the bottom is on the box or in front of it, never behind it. A
+    wider object shows its bottom beside the box.
+    """
+    def rule(obj: np.ndarray, static: np.ndarray, height: np.ndarray) -> np.ndarray:
+        margin = 0.1 * (obj[:, 2] - obj[:, 0])
+        within = (obj[:, 0] >= static[:, 0] - margin) & (obj[:, 2] <= static[:, 2] + margin)
+        return within & (obj[:, 3] > static[:, 1] + TOP_FACE_SHARE * height)
+
+    return _after_release(masks, contact, min_frames, rule, share=0.8)
+
+
 def _at_top_edge(obj: np.ndarray, static: np.ndarray, height: np.ndarray) -> np.ndarray:
     """Whether the object's boxes (n, 4) have their bottom row at the static's boxes' top edge:
     from a quarter of the static's height ``height`` (n,) [px] above it to a tenth below it."""
