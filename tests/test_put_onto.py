@@ -8,6 +8,7 @@ import pytest
 import torch
 
 from warpskill.contract.demonstration import Demonstration
+from warpskill.contract.evaluation import evaluate
 from warpskill.engine.distances import support_height
 from warpskill.engine.records import Rollout
 from warpskill.engine.projection import camera_rotation, project
@@ -189,6 +190,21 @@ def test_both_placements_go_through_the_physics(monkeypatch):
     starts.clear()
     optimize(make_demonstration("put_in_front_of", seed=0, input="boxes"), config=small, progress=False)
     assert len(starts) == 1  # in front of the static box: nothing says it may stand on it
+
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("action, scenarios, seed", [("put_onto", "none", 0), ("put_behind", "turned", 1)])
+def test_on_top_or_behind_is_chosen_by_the_evidence_of_a_generated_case(action, scenarios, seed):
+    # Both are boxes whose object ends with its bottom inside the static box's rows: the put
+    # onto on the box, the put behind behind a turned one (its far edge dips). Both placements
+    # are simulated and the one the masks support after the release wins, each the right way.
+    demo = make_demonstration(action, seed=seed, input="boxes", scenarios=scenarios)
+    seen = read_evidence(demo, {}, OptimizeConfig(), torch.device("cpu"))
+    assert seen.resting.any() and not seen.below_top_face.any()  # the boxes alone leave it open
+    recon = optimize(demo, config=OptimizeConfig(iterations=20, init_iterations=20), progress=False)
+    verdict = evaluate(recon, action)
+    assert verdict.success, verdict.checks
 
 
 def _box_demonstration(object_after, static_box, scale=4):
