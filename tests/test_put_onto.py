@@ -2,6 +2,7 @@
 
 import importlib
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -180,13 +181,16 @@ def test_both_placements_go_through_the_physics(monkeypatch):
         return make(fit, *args, **kwargs)
 
     monkeypatch.setattr(pipeline, "make_physical_scene", counted)
-    small = OptimizeConfig(iterations=3, init_iterations=3)
+    small = OptimizeConfig(iterations=3, init_iterations=3, behind_placement=True)
     demo = make_demonstration("put_onto", seed=0, input="boxes")
     optimize(demo, config=small, progress=False)
-    assert len(starts) == 3  # stage (a)'s winner, on the static box, behind it
+    assert len(starts) == 3  # stage (a)'s winner, on the static box, behind it (asked for)
     on_top, behind = starts[1], starts[2]
     assert not torch.equal(starts[0].object_pos, on_top.object_pos)
     assert on_top.object_pos[-1, 1] < static_back(on_top) < behind.object_pos[-1, 1]
+    starts.clear()
+    optimize(demo, config=replace(small, behind_placement=False), progress=False)
+    assert len(starts) == 2  # by default: stage (a)'s winner and on the static box
     starts.clear()
     optimize(make_demonstration("put_in_front_of", seed=0, input="boxes"), config=small, progress=False)
     assert len(starts) == 1  # in front of the static box: nothing says it may stand on it
@@ -223,10 +227,12 @@ def test_an_object_that_covers_a_narrower_static_box_top_edge_is_tried_on_it_too
         seen = read_evidence(_box_demonstration(object_after, (20, 34, 24, 36)), {}, OptimizeConfig(), cpu)
         assert not seen.resting.any() and bool(seen.behind is not None)
         assert bool(seen.covering.any()) is covering
-        placements = [c.placement for c in stage_a_candidates([seen], 0.45, cpu) if c.placement is not None]
-        assert [p.depth for p in placements] == [ObjectDepth.STATIC, ObjectDepth.BEHIND] * int(covering)
-        for placement in placements:
-            assert placement.frames.bool().tolist() == [False] * 12 + [True] * 8
+        for behind, depths in ((False, [ObjectDepth.STATIC]), (True, [ObjectDepth.STATIC, ObjectDepth.BEHIND])):
+            placements = [c.placement for c in stage_a_candidates([seen], 0.45, cpu, behind=behind)
+                          if c.placement is not None]
+            assert [p.depth for p in placements] == depths * int(covering)
+            for placement in placements:
+                assert placement.frames.bool().tolist() == [False] * 12 + [True] * 8
 
 
 def _one_box_scene(object_z, object_size):

@@ -134,7 +134,8 @@ def optimize_many(
     # Stage (a): each object-depth hypothesis; the depth hypotheses of a demonstration are
     # rivals, those clearly behind stop early (``config.rival_rungs``), the lowest loss wins.
     # Its first ``config.coarse_iterations`` at ``config.coarse_scale`` of the working resolution.
-    candidates = stage_a_candidates(evidence, config.weights.typical_camera_height, device)
+    candidates = stage_a_candidates(evidence, config.weights.typical_camera_height, device,
+                                    behind=config.behind_placement)
     coarse = [_coarse_evidence(e, config, device) for e in evidence] if config.coarse_iterations > 0 else evidence
     losses = minimise([c.parameters for c in candidates], _stage_a_objective(candidates, evidence, config, backend),
                       iterations=config.init_iterations, learning_rate=config.init_learning_rate, config=config,
