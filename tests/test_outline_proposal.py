@@ -35,10 +35,11 @@ def _texture(rng, colour, spread=30.0):
     return np.asarray(colour, np.float32) + cv2.GaussianBlur(noise, (0, 0), 1.5)
 
 
-def _render(action="put_onto", with_hand=True, seed=0):
+def _render(action="put_onto", with_hand=True, seed=0, pressed=False):
     """A clip of ``action`` (:data:`SCENES`): a blue box resting on a grey table is taken by a
     skin-coloured arm coming in from below, carried onto (beside, in front of) a green box or
-    lifted, and left there; the arm withdraws.
+    lifted, and left there; the arm withdraws. ``pressed``: the arm's tip rests on the box's
+    middle instead (hiding a part of it) and nothing is carried.
 
     Returns:
         (N, H, W, 3) uint8 frames, (N, H, W) bool true object masks, (H, W) bool static mask.
@@ -49,9 +50,10 @@ def _render(action="put_onto", with_hand=True, seed=0):
     table, box, thing, skin = (_texture(rng, colour) for colour in colours)
     # the object's path: at rest, carried (frames 16-25), at rest on the box
     steps = np.concatenate([np.zeros(16), np.linspace(0.0, 1.0, 10), np.ones(18)])
-    corners = np.array(OBJECT_REST) + steps[:, None] * (np.array(placed) - OBJECT_REST)
-    # the fingertip at the object's left side, coming up from below (frames 8-13), withdrawing (frames 30-35)
-    grip = corners + [0.0, OBJECT_SIZE[1] / 2]
+    corners = np.array(OBJECT_REST) + (0.0 if pressed else 1.0) * steps[:, None] * (np.array(placed) - OBJECT_REST)
+    # the fingertip at the object's left side (its middle if pressed), coming up from below (frames 8-13),
+    # withdrawing (frames 30-35)
+    grip = corners + [OBJECT_SIZE[0] / 2 if pressed else 0.0, OBJECT_SIZE[1] / 2]
     k = np.arange(len(steps))
     reach = np.clip((k - 8) / 6.0, 0.0, 1.0) * np.clip((35 - k) / 6.0, 0.0, 1.0)
     tips = grip + (1.0 - reach)[:, None] * [0.0, H + 10 - grip[0, 1]]
@@ -103,6 +105,17 @@ def test_the_object_taken_and_the_box_it_is_set_by_are_outlined(action):
     if static.any():
         assert _iou(masks["static_0"], static & ~objects[proposal.frame]) > 0.6
     assert proposal.regions[proposal.frame].any()  # the drawn arm, found by colour and motion
+
+
+def test_an_object_pressed_in_place_is_outlined_where_the_hand_does_not_hide_it():
+    from warpskill.data.footage.outline_proposal import propose_outline
+
+    frames, objects, _ = _render("pick_up", pressed=True)
+    whole = objects[0]
+    assert (objects[20].sum() < 0.8 * whole.sum()) and (objects[20] == objects[20] & whole).all()  # hidden at the touch
+    proposal = propose_outline(frames, "pick_up", fps=FPS, object_noun="box")
+    assert proposal.frame < 20 and (objects[proposal.frame] == whole).all()  # before the hand came over it
+    assert _iou(proposal.masks()["object"], whole) > 0.8
 
 
 def test_the_outline_file_round_trip(tmp_path):

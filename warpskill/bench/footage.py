@@ -13,7 +13,7 @@ With ``no_outline`` nobody outlines: the outline is proposed from the clip
 (:func:`warpskill.data.footage.outline_proposal.propose_outline`, with the action
 :func:`clip_action` and the annotation's noun, as a user gives them), and a clip where the
 proposal is unsure is refused: it gets no masks (every boxed frame counts 0) and its line is
-shown.
+shown. The proposal's static objects are matched to the boxed ones (:func:`matched_statics`).
 """
 
 from __future__ import annotations
@@ -164,7 +164,8 @@ def bench_footage(folder: str | os.PathLike, out: str | os.PathLike | None = Non
             outcomes.append(failed_case(clip.clip_id, "footage", str(error)))
             logger.warning("%s: %s", clip.clip_id, error)
             continue
-        scores[clip.clip_id] = score = score_clip(clip, found.found_hand, found.objects, found.contact,
+        objects = matched_statics(clip, found.objects) if no_outline else found.objects
+        scores[clip.clip_id] = score = score_clip(clip, found.found_hand, objects, found.contact,
                                                   time.perf_counter() - start)
         outcomes.append(_outcome(clip.clip_id, score))
     show(footage_table(scores))
@@ -190,6 +191,21 @@ def clip_outline(clip: FootageClip, out: str | os.PathLike | None = None):
         raise
     _save_picture(out, clip.clip_id, proposal_picture(clip.frames[proposal.frame], proposal))
     return proposal.frame, proposal.masks(), {"tracks": proposal.tracks, "regions": proposal.regions}
+
+
+def matched_statics(clip: FootageClip, objects: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The proposal's masks ``objects`` (label -> (N, H, W) bool) under the annotation's labels:
+    the object as it is, and each static object the annotation boxes as the proposed static
+    object whose masks fit its boxes best (highest mean box IoU). A proposal numbers its
+    static objects in its own order, and one proposed static object may stand for two boxed
+    ones (a puzzle and the part of it around the slot)."""
+    proposed = [label for label in objects if role_kind(label) == STATIC]
+    out = {label: mask for label, mask in objects.items() if role_kind(label) != STATIC}
+    for role, boxes in clip.boxes.items():
+        if role_kind(role) == STATIC and proposed:
+            fits = [np.nan_to_num(np.nanmean(box_ious(objects[label], boxes))) for label in proposed]
+            out[role] = objects[proposed[int(np.argmax(fits))]]
+    return out
 
 
 def _save_picture(out: str | os.PathLike | None, clip_id: str, picture: np.ndarray) -> None:

@@ -16,7 +16,9 @@ and MediaPipe's hand model only:
    fingertips, probably the object within its size of the grip, surely not the hands; the
    size is the object noun's typical size measured with the hand as a ruler (a palm is
    :data:`~warpskill.nouns.typical.HAND_BREADTH` broad), or :data:`DEFAULT_OBJECT_EDGES`.
-   The piece that holds the seed is the object.
+   The piece that holds the seed is the object. An object the hand does not carry (pressed,
+   poked) and that is not put anywhere is cut out again, and outlined, on the nearest frame
+   before the touch (else after it) where no hand hides it (:mod:`.unhidden_proposal`).
 4. **The static object** (:func:`warpskill.contract.actions.has_static_object`) is cut out
    the same way, seeded beside the object on the side the action names (below it for
    ``put_onto`` and ``put_behind``, above it for ``put_in_front_of``, away from the arm for
@@ -52,6 +54,7 @@ from warpskill.data.footage.hand_landmarks import (
 )
 from warpskill.data.footage.hand_regions import hand_regions
 from warpskill.data.footage.hands import choose_hand, hand_masks
+from warpskill.data.footage.unhidden_proposal import unhidden_view
 from warpskill.data.readers.polygons import polygon_mask
 from warpskill.media import HAND_COLOR, OBJECT_COLOR, STATIC_COLOR
 from warpskill.nouns.typical import HAND_BREADTH, typical_size
@@ -212,7 +215,9 @@ def propose_outline(frames: np.ndarray, action: str, *, fps: float, object_noun:
     if not pieces:
         raise OutlineUnsure(f"frame {key}: nothing told apart at the hand's fingertips: outline {what} on one frame "
                             f"(--polygons)", key, _picture(frames[key], {}, hands, grip))
-    seed, obj = _the_object(frames, key, pieces, grips, sizes, tracks, regions, hands)
+    seed, obj, carried = _the_object(frames, key, pieces, grips, sizes, tracks, regions, hands)
+    if not carried and not static:  # a put's object was carried to where it is released
+        key, seed, obj, hands = _unhidden(frames, key, (seed, obj, hands), seeds, size, edges, tracks, regions)
     masks, seeds, nouns = {OBJECT: obj}, {OBJECT: seed}, {OBJECT: object_noun} if object_noun else {}
     if static:
         label = static_role(0)
@@ -420,7 +425,8 @@ def _the_object(frames: np.ndarray, key: int, pieces: list, grips: np.ndarray, s
     (:func:`_alike`) and the part hidden by the hand (:func:`_under_hand`).
 
     Returns:
-        The first chosen piece's seed (x, y) [px] and the object's (H, W) bool mask.
+        The first chosen piece's seed (x, y) [px], the object's (H, W) bool mask, and whether
+        it moves with the hand.
     """
     size = float(sizes[key])
     carried = np.array([_carried(frames, key, piece, grips, sizes, tracks, regions) for _, piece in pieces])
@@ -429,7 +435,35 @@ def _the_object(frames: np.ndarray, key: int, pieces: list, grips: np.ndarray, s
     else:
         chosen = [int(np.argmax([_contrast(frames[key], piece, hands, size) for _, piece in pieces]))]
     alike = _alike(frames[key], [piece for _, piece in pieces], chosen, hands, size)
-    return pieces[chosen[0]][0], _under_hand(alike, hands, grips[key])
+    return pieces[chosen[0]][0], _under_hand(alike, hands, grips[key]), bool((carried > CARRIED_SCORE).any())
+
+
+def _unhidden(frames: np.ndarray, key: int, touched: tuple, seeds: list[np.ndarray], size: float,
+              edges: tuple[float, float], tracks: HandTracks, regions: np.ndarray) -> tuple:
+    """An object the hand does not carry, cut out again where no hand hides it
+    (:func:`.unhidden_proposal.unhidden_view`: no hand within the object's longest edge of
+    its ``seeds`` carried there, nor within the most its cut-out reaches,
+    :data:`SEED_HAND_SIZES`): the piece standing out most (:func:`_contrast`) with those alike it.
+
+    Args:
+        touched: the seed (x, y) [px], the (H, W) bool object and the hands at frame ``key``,
+            kept where no frame or no piece serves.
+
+    Returns:
+        The frame, the seed, the object's (H, W) bool mask and the hands there.
+    """
+    view = unhidden_view(frames, key, np.array(seeds), lambda j: _every_hand(tracks, regions, j),
+                         max(edges[1], SEED_HAND_SIZES[1] * size))
+    if view is None:
+        return (key, *touched)
+    j, carried = view
+    hands = _every_hand(tracks, regions, j)
+    pieces = [(seed, _cut_out(frames[j], seed, size, edges, hands)) for seed in carried]
+    pieces = [(seed, piece) for seed, piece in pieces if _plausible(piece, size)]
+    if not pieces:
+        return (key, *touched)
+    chosen = [int(np.argmax([_contrast(frames[j], piece, hands, size) for _, piece in pieces]))]
+    return j, pieces[chosen[0]][0], _alike(frames[j], [piece for _, piece in pieces], chosen, hands, size), hands
 
 
 def _static_piece(frame: np.ndarray, seed: np.ndarray, size: float, noun: str | None, not_it: np.ndarray) -> np.ndarray:
