@@ -139,8 +139,8 @@ def test_a_real_clip_without_the_hand_outlined_becomes_a_demonstration(tmp_path)
     outline = tmp_path / "outline.json"
     outline.write_text(json.dumps({"frame": frame, "object": [[x0, y0], [x1, y0], [x1, y1], [x0, y1]],
                                    "object_noun": "glass"}))
-    demo, frames, landmarks = read_recording(FOOTAGE / "frames" / "44862" / "%04d.jpg", polygons=outline,
-                                             action="pick_up")
+    demo, frames, landmarks, _ = read_recording(FOOTAGE / "frames" / "44862" / "%04d.jpg", polygons=outline,
+                                                action="pick_up")
     assert demo.fps == 12.0 and demo.object_noun == "glass" and frames.shape[0] == demo.num_frames == 46
     seen = np.isfinite(landmarks[:, 0, 0])
     assert seen.mean() > 0.8  # the hand holds the glass throughout

@@ -205,7 +205,7 @@ def test_labelme_polygons_with_a_frame_option(recording, tmp_path):
     ]}
     path = tmp_path / "labelme.json"
     path.write_text(json.dumps(labelme))
-    demo, frames, _ = read_recording(recording["video"], polygons=path, action="pick_up", frame=k)
+    demo, frames, *_ = read_recording(recording["video"], polygons=path, action="pick_up", frame=k)
     assert np.array_equal(demo.hand_mask[k], truth.hand_mask[k]) or _iou(demo.hand_mask[k], truth.hand_mask[k]) > 0.9
     assert demo.num_static == 1 and frames.shape == (truth.num_frames, 96, 128, 3)
     # without --frame, the digits of imagePath: frame 3

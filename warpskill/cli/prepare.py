@@ -17,16 +17,7 @@ import numpy as np
 from warpskill import visual  # a lazy package: the contact sheet loads on first use
 from warpskill.cli.common import Refused
 from warpskill.contract import DemonstrationError
-from warpskill.data import (
-    IMAGE_SEQUENCE_FPS,
-    MASK_SOURCES,
-    OutlineUnsure,
-    is_image_sequence,
-    propose_outline,
-    read_recording,
-    read_video,
-    write_outline,
-)
+from warpskill.data import MASK_SOURCES, OutlineUnsure, read_recording, write_outline
 
 __all__ = ["add_recording_options", "prepare", "register"]
 
@@ -93,16 +84,15 @@ def prepare(args, demo_path: Path, sheet_path: Path, outline_path: Path | None =
             (``.unsure.png`` beside the demonstration).
     """
     source = next((name for name in MASK_SOURCES if getattr(args, name) is not None), None)
-    proposal = None
     try:
-        if source is None:
-            proposal = _propose(args, demo_path)
-        demo, frames, landmarks = read_recording(
+        demo, frames, landmarks, proposal = read_recording(
             args.video, masks=args.masks, labels=args.labels, polygons=args.polygons, boxes=args.boxes,
             video_id=args.video_id, contact=args.contact, detections=args.detections, action=args.action,
             fps=args.fps, intrinsics=args.intrinsics, frame=args.frame, object_noun=args.object_noun,
-            static_noun=args.static_noun, outline=proposal,
+            static_noun=args.static_noun,
         )
+    except OutlineUnsure as unsure:
+        raise Refused(f"{args.video}: {unsure.line}; what was seen: {_unsure_picture(unsure, demo_path)}") from None
     except (DemonstrationError, ImportError) as error:  # nothing written yet (ImportError: MediaPipe missing)
         raise Refused(str(error)) from None
     demo_path.parent.mkdir(parents=True, exist_ok=True)
@@ -127,19 +117,12 @@ def prepare(args, demo_path: Path, sheet_path: Path, outline_path: Path | None =
     return demo, frames
 
 
-def _propose(args, demo_path: Path):
-    """The outline proposed from the video; where unsure, its picture written beside the
-    demonstration (``.unsure.png``) and the unsure line raised."""
-    frames, fps = read_video(args.video)
-    fps = args.fps or (IMAGE_SEQUENCE_FPS if is_image_sequence(args.video) else fps) or IMAGE_SEQUENCE_FPS
-    try:
-        return propose_outline(frames, args.action, fps=fps, object_noun=args.object_noun,
-                                       static_noun=args.static_noun)
-    except OutlineUnsure as unsure:
-        picture = demo_path.with_suffix(".unsure.png")
-        picture.parent.mkdir(parents=True, exist_ok=True)
-        cv2.imwrite(str(picture), cv2.cvtColor(unsure.picture, cv2.COLOR_RGB2BGR))
-        raise DemonstrationError(f"{args.video}: {unsure.line}; what was seen: {picture}") from None
+def _unsure_picture(unsure: OutlineUnsure, demo_path: Path) -> Path:
+    """What the unsure proposal saw, written beside the demonstration (``.unsure.png``)."""
+    picture = demo_path.with_suffix(".unsure.png")
+    picture.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(picture), cv2.cvtColor(unsure.picture, cv2.COLOR_RGB2BGR))
+    return picture
 
 
 def _prepare(args) -> int:

@@ -55,11 +55,13 @@ class Recording(NamedTuple):
         frames: (N, H, W, 3) uint8 RGB video frames.
         landmarks: (N, 21, 2) the found hand's landmarks (x, y) [px], NaN rows where none
             is seen; None when the hand was not found but given.
+        outline: the outline proposed from the video where no mask source was given, else None.
     """
 
     demo: Demonstration
     frames: np.ndarray
     landmarks: np.ndarray | None = None
+    outline: OutlineProposal | None = None
 
 
 def prepare_recording(video: str | os.PathLike, **sources) -> Demonstration:
@@ -84,7 +86,6 @@ def read_recording(
     frame: int | None = None,
     object_noun: str | None = None,
     static_noun: str | None = None,
-    outline: OutlineProposal | None = None,
 ) -> Recording:
     """A video and at most one source of masks as a demonstration, and the video's frames.
 
@@ -116,8 +117,6 @@ def read_recording(
         object_noun: what the manipulated object is (overrides the polygon file's); with no
             mask source also a size prior of the proposed outline.
         static_noun: what the (first) static object is; with no mask source also a size prior.
-        outline: with no mask source, the outline already proposed on this video's frames
-            (:func:`propose_outline`); None proposes it here.
 
     With no mask source the outline is proposed from the video (:func:`propose_outline`:
     the object the hand takes, the static object of a ``put_*`` action) and followed as
@@ -125,8 +124,8 @@ def read_recording(
 
     Returns:
         The demonstration (masks cleaned: the largest blob per frame; the object's noun from
-        ``object_noun``, else the polygon file's ``object_noun``), the frames and the found
-        hand's landmarks.
+        ``object_noun``, else the polygon file's ``object_noun``), the frames, the found
+        hand's landmarks and the proposed outline.
 
     Raises:
         OutlineUnsure: no mask source and the video does not say what to outline (its line
@@ -140,12 +139,12 @@ def read_recording(
         FileNotFoundError: a file or folder does not exist.
     """
     source, where = _mask_source(dict(zip(MASK_SOURCES, (masks, labels, polygons, boxes))), contact=contact,
-                                 detections=detections, video_id=video_id, frame=frame, action=action, outline=outline)
+                                 detections=detections, video_id=video_id, frame=frame, action=action)
     frames, fps = _frames(video, fps)
     camera_K = _camera_matrix(intrinsics)
+    outline = None
     if source == PROPOSED:
-        if outline is None:
-            outline = propose_outline(frames, action, fps=fps, object_noun=object_noun, static_noun=static_noun)
+        outline = propose_outline(frames, action, fps=fps, object_noun=object_noun, static_noun=static_noun)
         where = f"{video} (the proposed outline)"
     hand, obj, static, found, noun = _masks(source, where, video, frames, frame=frame, video_id=video_id, action=action,
                                             outline=outline)
@@ -159,17 +158,15 @@ def read_recording(
         )
     except DemonstrationError as exc:
         raise DemonstrationError(f"{contact if contact is not None else where}: {exc}") from None
-    return Recording(demo, frames, None if found is None else found.landmarks)
+    return Recording(demo, frames, None if found is None else found.landmarks, outline)
 
 
-def _mask_source(sources: dict, *, contact, detections, video_id, frame, action: str, outline) -> tuple[str, object]:
+def _mask_source(sources: dict, *, contact, detections, video_id, frame, action: str) -> tuple[str, object]:
     """The mask source given among ``sources`` (name -> path or None), as (name, path), or
     (:data:`PROPOSED`, None) for none; the options checked against it."""
     given = {name: value for name, value in sources.items() if value is not None}
     if len(given) > 1:
         raise DemonstrationError(f"give at most one mask source of {', '.join(MASK_SOURCES)} (got {', '.join(given)})")
-    if outline is not None and given:
-        raise DemonstrationError(f"outline: only without a mask source (got {', '.join(given)})")
     if contact is not None and detections is not None:
         raise DemonstrationError("give a contact file or a detections file, not both")
     if video_id is not None and "boxes" not in given:
