@@ -206,7 +206,7 @@ def propose_outline(frames: np.ndarray, action: str, *, fps: float, object_noun:
     marked = np.flatnonzero(np.isfinite(landmarks).all(axis=(1, 2)))
     key = _key_frame(grips, sizes, marked if len(marked) else seen, fps, later_half=static)
     grip, size = grips[key], float(sizes[key])
-    hands = _every_hand(tracks, regions, key) | _tight_hand(landmarks[key], regions[key], (h, w))
+    hands = _every_hand(tracks, regions, key, but=landmarks[key]) | _tight_hand(landmarks[key], regions[key], (h, w))
     _check_one_grip(tracks, key, frames[key], hands, what)
     edges = _edges_px(object_noun, DEFAULT_OBJECT_EDGES, size)
     seeds = _object_seeds(landmarks[key], regions[key], grip, size)
@@ -308,11 +308,13 @@ def _key_frame(grips: np.ndarray, sizes: np.ndarray, seen: np.ndarray, fps: floa
     return int(candidates[np.argmin(speed[candidates])])
 
 
-def _every_hand(tracks: HandTracks, regions: np.ndarray, k: int) -> np.ndarray:
-    """(H, W) bool: every hand seen in frame ``k``, forearms included."""
+def _every_hand(tracks: HandTracks, regions: np.ndarray, k: int, *, but: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) bool: every hand seen in frame ``k``, forearms included; ``but`` (21, 2) [px]:
+    the landmarks of a hand left out."""
     out = regions[k].copy()
     for landmarks in tracks.all_landmarks():
-        out |= hand_masks(landmarks[k : k + 1], tracks.image_size, forearm=True)[0]
+        if but is None or not np.array_equal(landmarks[k], but, equal_nan=True):
+            out |= hand_masks(landmarks[k : k + 1], tracks.image_size, forearm=True)[0]
     return out
 
 
