@@ -1,11 +1,11 @@
 """The frame where the hand does not hide what it touches, for the outline's proposal.
 
 An object the hand presses, pokes or holds in place without carrying it lies in the same
-place before the hand comes (and, unless pushed, after it leaves); there it is seen whole, where at the touch
-the fingers cover it (a small toy under a fingertip, a book's lower half under the hand).
-:func:`unhidden_view` finds the frame nearest to the touch in which no hand lies near the
-touched points, and where those points are there (the camera's motion between the two frames
-fitted as a homography to corners tracked outside the hands). OpenCV and NumPy only.
+place before the hand comes (and, unless pushed, after it leaves); there it is seen whole,
+where at the touch the fingers cover it (a small toy under a fingertip). :func:`unhidden_view`
+finds the frame nearest to the touch in which no hand lies near the touched points, and where
+those points are there (the camera's motion fitted from frame to frame as a homography to
+corners tracked off the hands). OpenCV and NumPy only.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ import numpy as np
 from warpskill.data.footage.tracking import CAMERA_CORNERS, CAMERA_RANSAC_PX, carried_corners
 
 MIN_CAMERA_INLIERS = 12
-"""Fewest corners agreeing with the camera's homography between the touch and another frame
-for the points to be placed there (fewer: the frames are not registered, the frame is skipped)."""
+"""Fewest corners agreeing with the camera's homography between two frames for the points to
+be carried on (fewer: the frames are not registered, and the search stops on that side)."""
 
 HAND_MARGIN_PX = 7
 """Width [px] the hands are widened by before corners are taken off them (a hand's edge
@@ -42,24 +42,20 @@ def unhidden_view(frames: np.ndarray, key: int, points: np.ndarray, hands_of: Ca
 
     Returns:
         The frame and the (M, 2) points [px] there; None where no frame is clear of the hands
-        with the points inside the image and the camera's motion fitted.
+        with the points inside the image, the camera's motion fitted from frame to frame.
     """
     n, h, w = frames.shape[:3]
-    key_grey = cv2.cvtColor(frames[key], cv2.COLOR_RGB2GRAY)
-    corners = CAMERA_CORNERS.find(key_grey, _off(hands_of(key)))
-    if corners is None or len(corners) < MIN_CAMERA_INLIERS:
-        return None
-    for j in [*range(key - 1, -1, -1), *range(key + 1, n)]:
-        hands = hands_of(j)
-        if _distance_to(hands, points) <= reach:  # the camera moves little: a quick test first
-            continue
-        homography = _camera_motion(key_grey, cv2.cvtColor(frames[j], cv2.COLOR_RGB2GRAY), corners)
-        if homography is None:
-            continue
-        carried = cv2.perspectiveTransform(points.reshape(-1, 1, 2).astype(np.float64), homography).reshape(-1, 2)
-        inside = ((carried >= 0) & (carried < [w, h])).all()
-        if inside and _distance_to(hands, carried) > reach:
-            return j, carried
+    for step in (-1, 1):
+        carried = points.reshape(-1, 1, 2).astype(np.float64)
+        for j in range(key + step, n if step > 0 else -1, step):
+            homography = _camera_motion(frames[j - step], frames[j], hands_of(j - step))
+            if homography is None:
+                break
+            carried = cv2.perspectiveTransform(carried, homography)
+            if not ((carried >= 0) & (carried < [w, h])).all():
+                break
+            if _distance_to(hands_of(j), carried.reshape(-1, 2)) > reach:
+                return j, carried.reshape(-1, 2)
     return None
 
 
@@ -79,10 +75,14 @@ def _distance_to(mask: np.ndarray, points: np.ndarray) -> float:
     return float(distance[ys, xs].min())
 
 
-def _camera_motion(before: np.ndarray, after: np.ndarray, corners: np.ndarray) -> np.ndarray | None:
-    """(3, 3) homography from grey frame ``before``'s pixels to ``after``'s, fitted (RANSAC) to
-    ``corners`` (M, 1, 2) tracked with Lucas-Kanade; None where fewer than
-    :data:`MIN_CAMERA_INLIERS` agree."""
+def _camera_motion(before: np.ndarray, after: np.ndarray, hands: np.ndarray) -> np.ndarray | None:
+    """(3, 3) homography from RGB frame ``before``'s pixels to the next frame ``after``'s,
+    fitted (RANSAC) to corners off ``before``'s ``hands`` (H, W) bool tracked with
+    Lucas-Kanade; None where fewer than :data:`MIN_CAMERA_INLIERS` agree."""
+    before, after = (cv2.cvtColor(frame, cv2.COLOR_RGB2GRAY) for frame in (before, after))
+    corners = CAMERA_CORNERS.find(before, _off(hands))
+    if corners is None or len(corners) < MIN_CAMERA_INLIERS:
+        return None
     source, target = carried_corners(before, after, corners)
     if len(source) < MIN_CAMERA_INLIERS:
         return None
