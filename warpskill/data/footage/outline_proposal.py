@@ -17,8 +17,9 @@ and MediaPipe's hand model only:
    size is the object noun's typical size measured with the hand as a ruler (a palm is
    :data:`~warpskill.nouns.typical.HAND_BREADTH` broad), or :data:`DEFAULT_OBJECT_EDGES`.
    The piece that holds the seed is the object. An object the hand does not carry (pressed,
-   poked) and that is not put anywhere is cut out again, and outlined, on the nearest frame
-   before the touch (else after it) where no hand hides it (:mod:`.unhidden_proposal`).
+   poked) and that is not put anywhere is cut out again at that seed, and outlined, on the
+   nearest frame before the touch (else after it) where no hand hides it
+   (:mod:`.unhidden_proposal`).
 4. **The static object** (:func:`warpskill.contract.actions.has_static_object`) is cut out
    the same way, seeded beside the object on the side the action names (below it for
    ``put_onto`` and ``put_behind``, above it for ``put_in_front_of``, away from the arm for
@@ -217,7 +218,7 @@ def propose_outline(frames: np.ndarray, action: str, *, fps: float, object_noun:
                             f"(--polygons)", key, _picture(frames[key], {}, hands, grip))
     seed, obj, carried = _the_object(frames, key, pieces, grips, sizes, tracks, regions, hands)
     if not carried and not static:  # a put's object was carried to where it is released
-        key, seed, obj, hands = _unhidden(frames, key, (seed, obj, hands), seeds, size, edges, tracks, regions)
+        key, seed, obj, hands = _unhidden(frames, key, (seed, obj, hands), size, edges, tracks, regions)
     masks, seeds, nouns = {OBJECT: obj}, {OBJECT: seed}, {OBJECT: object_noun} if object_noun else {}
     if static:
         label = static_role(0)
@@ -440,32 +441,27 @@ def _the_object(frames: np.ndarray, key: int, pieces: list, grips: np.ndarray, s
     return pieces[chosen[0]][0], _under_hand(alike, hands, grips[key]), bool((carried > CARRIED_SCORE).any())
 
 
-def _unhidden(frames: np.ndarray, key: int, touched: tuple, seeds: list[np.ndarray], size: float,
-              edges: tuple[float, float], tracks: HandTracks, regions: np.ndarray) -> tuple:
-    """An object the hand does not carry, cut out again where no hand hides it
+def _unhidden(frames: np.ndarray, key: int, touched: tuple, size: float, edges: tuple[float, float],
+              tracks: HandTracks, regions: np.ndarray) -> tuple:
+    """An object the hand does not carry, cut out again at its seed where no hand hides it
     (:func:`.unhidden_proposal.unhidden_view`: no hand within the object's longest edge of
-    its ``seeds`` carried there, nor within the most its cut-out reaches,
-    :data:`SEED_HAND_SIZES`): the piece standing out most (:func:`_contrast`) with those alike it.
+    the seed carried there, nor within the most its cut-out reaches, :data:`SEED_HAND_SIZES`).
 
     Args:
         touched: the seed (x, y) [px], the (H, W) bool object and the hands at frame ``key``,
-            kept where no frame or no piece serves.
+            kept where no frame serves or nothing is told apart there.
 
     Returns:
         The frame, the seed, the object's (H, W) bool mask and the hands there.
     """
-    view = unhidden_view(frames, key, np.array(seeds), lambda j: _every_hand(tracks, regions, j),
+    view = unhidden_view(frames, key, np.array([touched[0]]), lambda j: _every_hand(tracks, regions, j),
                          max(edges[1], SEED_HAND_SIZES[1] * size))
     if view is None:
         return (key, *touched)
-    j, carried = view
+    j, (seed,) = view
     hands = _every_hand(tracks, regions, j)
-    pieces = [(seed, _cut_out(frames[j], seed, size, edges, hands)) for seed in carried]
-    pieces = [(seed, piece) for seed, piece in pieces if _plausible(piece, size)]
-    if not pieces:
-        return (key, *touched)
-    chosen = [int(np.argmax([_contrast(frames[j], piece, hands, size) for _, piece in pieces]))]
-    return j, pieces[chosen[0]][0], _alike(frames[j], [piece for _, piece in pieces], chosen, hands, size), hands
+    piece = _cut_out(frames[j], seed, size, edges, hands)
+    return (j, seed, piece, hands) if _plausible(piece, size) else (key, *touched)
 
 
 def _static_piece(frame: np.ndarray, seed: np.ndarray, size: float, noun: str | None, not_it: np.ndarray) -> np.ndarray:
