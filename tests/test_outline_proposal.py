@@ -107,6 +107,17 @@ def test_the_object_taken_and_the_box_it_is_set_by_are_outlined(action):
     assert proposal.regions[proposal.frame].any()  # the drawn arm, found by colour and motion
 
 
+def test_an_object_released_against_the_static_object_is_told_from_it_by_what_was_there_before():
+    # this texture draws the box and the crate so that GrabCut at the release takes them as one piece
+    from warpskill.data.footage.outline_proposal import propose_outline
+
+    frames, objects, static = _render("put_in_front_of", seed=1)
+    proposal = propose_outline(frames, "put_in_front_of", fps=FPS, object_noun="box", static_noun="crate")
+    masks = proposal.masks()
+    assert _iou(masks["object"], objects[proposal.frame]) > 0.6
+    assert _iou(masks["static_0"], static & ~objects[proposal.frame]) > 0.6
+
+
 def _panned(images, step=(0.8, 0.3), interpolation=cv2.INTER_LINEAR):
     """(N, H, W[, 3]) ``images`` as a camera panning ``step`` (x, y) [px] a frame sees them."""
     out = [cv2.warpAffine(image, np.float32([[1, 0, k * step[0]], [0, 1, k * step[1]]]), (W, H), flags=interpolation,

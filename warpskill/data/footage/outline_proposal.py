@@ -20,6 +20,8 @@ and MediaPipe's hand model only:
    poked) and that is not put anywhere is cut out again at that seed, and outlined, on the
    nearest frame before the touch (else after it) where no hand hides it
    (:mod:`.unhidden_proposal`).
+   At a release, what was there before the hand brought the object (the static object it
+   touches, cut out with it) is taken off it (:mod:`.release_proposal`).
 4. **The static object** (:func:`warpskill.contract.actions.has_static_object`) is cut out
    the same way, seeded beside the object on the side the action names (below it for
    ``put_onto`` and ``put_behind``, above it for ``put_in_front_of``, away from the arm for
@@ -55,6 +57,7 @@ from warpskill.data.footage.hand_landmarks import (
 )
 from warpskill.data.footage.hand_regions import hand_regions
 from warpskill.data.footage.hands import choose_hand, hand_masks
+from warpskill.data.footage.release_proposal import earlier_elsewhere, stayed
 from warpskill.data.footage.unhidden_proposal import unhidden_view
 from warpskill.data.readers.polygons import polygon_mask
 from warpskill.media import HAND_COLOR, OBJECT_COLOR, STATIC_COLOR
@@ -219,10 +222,13 @@ def propose_outline(frames: np.ndarray, action: str, *, fps: float, object_noun:
     seed, obj, carried = _the_object(frames, key, pieces, grips, sizes, tracks, regions, hands)
     if not carried and not static:  # a put's object was carried to where it is released
         key, seed, obj, hands = _unhidden(frames, key, (seed, obj, hands), size, edges, tracks, regions)
+    if static:
+        obj = _brought(frames, key, obj, grips, size, tracks, regions)
     masks, seeds, nouns = {OBJECT: obj}, {OBJECT: seed}, {OBJECT: object_noun} if object_noun else {}
     if static:
         label = static_role(0)
-        seeds[label] = _static_seed(action, obj, landmarks[key], _edges_px(static_noun, DEFAULT_STATIC_EDGES, size), size)
+        static_edges = _edges_px(static_noun, DEFAULT_STATIC_EDGES, size)
+        seeds[label] = _static_seed(action, obj, landmarks[key], static_edges, size)
         masks[label] = _static_piece(frames[key], seeds[label], size, static_noun, hands | obj)
         if not _plausible(masks[label], size):
             raise OutlineUnsure(f"frame {key}: no static object told apart {_SIDES[action]} the object: outline it "
@@ -462,6 +468,25 @@ def _unhidden(frames: np.ndarray, key: int, touched: tuple, size: float, edges: 
     hands = _every_hand(tracks, regions, j)
     piece = _cut_out(frames[j], seed, size, edges, hands)
     return (j, seed, piece, hands) if _plausible(piece, size) else (key, *touched)
+
+
+def _brought(frames: np.ndarray, key: int, obj: np.ndarray, grips: np.ndarray, size: float, tracks: HandTracks,
+             regions: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the object ``obj`` released at frame ``key`` less what was there before the
+    hand brought it (:mod:`.release_proposal`: the static object it touches, cut out with it),
+    its largest piece with holes filled; ``obj`` where that is not told, or leaves no
+    :func:`_plausible` piece."""
+    ys, xs = np.nonzero(obj)
+    earlier = earlier_elsewhere(grips, key, float(max(np.ptp(xs), np.ptp(ys)) + 1))
+    before = None if earlier is None else stayed(frames, key, earlier, lambda j: _every_hand(tracks, regions, j))
+    if before is None:
+        return obj
+    rest = cv2.morphologyEx((obj & ~before).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(rest, connectivity=8)
+    if count < 2:
+        return obj
+    piece = _filled(labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA])))
+    return piece if _plausible(piece, size) else obj
 
 
 def _static_piece(frame: np.ndarray, seed: np.ndarray, size: float, noun: str | None, not_it: np.ndarray) -> np.ndarray:

@@ -48,7 +48,7 @@ def unhidden_view(frames: np.ndarray, key: int, points: np.ndarray, hands_of: Ca
     for step in (-1, 1):
         carried = points.reshape(-1, 1, 2).astype(np.float64)
         for j in range(key + step, n if step > 0 else -1, step):
-            homography = _camera_motion(frames[j - step], frames[j], hands_of(j - step))
+            homography = camera_motion(frames[j - step], frames[j], hands_of(j - step))
             if homography is None:
                 break
             carried = cv2.perspectiveTransform(carried, homography)
@@ -75,8 +75,8 @@ def _distance_to(mask: np.ndarray, points: np.ndarray) -> float:
     return float(distance[ys, xs].min())
 
 
-def _camera_motion(before: np.ndarray, after: np.ndarray, hands: np.ndarray) -> np.ndarray | None:
-    """(3, 3) homography from RGB frame ``before``'s pixels to the next frame ``after``'s,
+def camera_motion(before: np.ndarray, after: np.ndarray, hands: np.ndarray) -> np.ndarray | None:
+    """(3, 3) homography from (H, W, 3) uint8 RGB frame ``before``'s pixels to the next frame ``after``'s,
     fitted (RANSAC) to corners off ``before``'s ``hands`` (H, W) bool tracked with
     Lucas-Kanade; None where fewer than :data:`MIN_CAMERA_INLIERS` agree."""
     before, after = (cv2.cvtColor(frame, cv2.COLOR_RGB2GRAY) for frame in (before, after))
