@@ -227,12 +227,8 @@ def propose_outline(frames: np.ndarray, action: str, *, fps: float, object_noun:
     masks, seeds, nouns = {OBJECT: obj}, {OBJECT: seed}, {OBJECT: object_noun} if object_noun else {}
     if static:
         label = static_role(0)
-        static_edges = _edges_px(static_noun, DEFAULT_STATIC_EDGES, size)
-        seeds[label] = _static_seed(action, obj, landmarks[key], static_edges, size)
-        masks[label] = _static_piece(frames[key], seeds[label], size, static_noun, hands | obj)
-        if not _plausible(masks[label], size):
-            raise OutlineUnsure(f"frame {key}: no static object told apart {_SIDES[action]} the object: outline it "
-                                f"(--polygons)", key, _picture(frames[key], masks, hands, seeds[label]))
+        seeds[label], masks[label] = _static_object(frames[key], key, action, obj, landmarks[key], size, static_noun,
+                                                    hands)
         nouns.update({label: static_noun} if static_noun else {})
     polygons = {label: _polygon(mask) for label, mask in masks.items()}
     seeds = {label: (float(x), float(y)) for label, (x, y) in seeds.items()}
@@ -487,6 +483,23 @@ def _brought(frames: np.ndarray, key: int, obj: np.ndarray, grips: np.ndarray, s
         return obj
     piece = _filled(labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA])))
     return piece if _plausible(piece, size) else obj
+
+
+def _static_object(frame: np.ndarray, key: int, action: str, obj: np.ndarray, points: np.ndarray, size: float,
+                   noun: str | None, hands: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The static object of ``action`` beside the object ``obj`` (H, W) in ``frame`` (the key
+    frame ``key``): its seed (x, y) [px] (:func:`_static_seed`, ``points`` the hand's (21, 2)
+    landmarks) and (H, W) bool mask (:func:`_static_piece`, bounded by ``noun``'s size).
+
+    Raises:
+        OutlineUnsure: nothing plausible is cut out there.
+    """
+    seed = _static_seed(action, obj, points, _edges_px(noun, DEFAULT_STATIC_EDGES, size), size)
+    piece = _static_piece(frame, seed, size, noun, hands | obj)
+    if not _plausible(piece, size):
+        raise OutlineUnsure(f"frame {key}: no static object told apart {_SIDES[action]} the object: outline it "
+                            f"(--polygons)", key, _picture(frame, {OBJECT: obj, "static": piece}, hands, seed))
+    return seed, piece
 
 
 def _static_piece(frame: np.ndarray, seed: np.ndarray, size: float, noun: str | None, not_it: np.ndarray) -> np.ndarray:
