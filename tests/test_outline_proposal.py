@@ -107,6 +107,17 @@ def test_the_object_taken_and_the_box_it_is_set_by_are_outlined(action):
     assert proposal.regions[proposal.frame].any()  # the drawn arm, found by colour and motion
 
 
+def test_a_fringe_of_the_arm_left_out_of_its_region_is_not_taken_for_the_object():
+    # this texture leaves the tip of the drawn arm out of the colour-and-motion region
+    from warpskill.data.footage.outline_proposal import propose_outline
+
+    frames, objects, static = _render("put_onto", seed=1)
+    proposal = propose_outline(frames, "put_onto", fps=FPS, object_noun="box", static_noun="crate")
+    masks = proposal.masks()
+    assert _iou(masks["object"], objects[proposal.frame]) > 0.6
+    assert _iou(masks["static_0"], static & ~objects[proposal.frame]) > 0.6
+
+
 def test_an_object_released_against_the_static_object_is_told_from_it_by_what_was_there_before():
     # this texture draws the box and the crate so that GrabCut at the release takes them as one piece
     from warpskill.data.footage.outline_proposal import propose_outline

@@ -78,6 +78,12 @@ object still gets a disc a finger wide, a large one no more than the reach of th
 SURE_HAND_SIZE = 0.15
 """Radius of the sure object (or static object) at its seed, in hand sizes (a fingertip)."""
 
+REGION_SEED_HAND_SIZES = 0.5
+"""How far past the grip of a hand found only by colour and motion a second object seed
+lies, in hand sizes: such a region may leave out a fringe of skin at its tip, which a seed
+just past the grip cuts out as the object (a third of a hand size was not always past it on
+the rendered clips)."""
+
 SEARCH_EDGES = 1.5
 """Half the side of the square GrabCut looks in, in longest edges of the expected object
 (at least one hand size): what lies farther from the seed is surely background."""
@@ -357,16 +363,18 @@ def _object_seeds(points: np.ndarray, region: np.ndarray, grip: np.ndarray, size
     """(2,) [px] seeds where the object may be: past the fingertips (what the fingers press),
     past the index fingertip (what it pokes), past the index and the little finger's knuckles
     and past the thumb (what the fist holds sticks out at its sides); for a hand found only
-    as a ``region`` (H, W), past its grip away from the region's centre, and at its grip."""
+    as a ``region`` (H, W), past its grip away from the region's centre (just past, and
+    :data:`REGION_SEED_HAND_SIZES` past), and at its grip."""
 
-    def past(point: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    def past(point: np.ndarray, origin: np.ndarray, reach: float = SURE_HAND_SIZE) -> np.ndarray:
         away = point - origin
         norm = float(np.linalg.norm(away))
-        return point if norm < 1e-6 else point + away / norm * SURE_HAND_SIZE * size
+        return point if norm < 1e-6 else point + away / norm * reach * size
 
     if not np.isfinite(points).all():
         ys, xs = np.nonzero(region)
-        return [past(grip, np.array([xs.mean() + 0.5, ys.mean() + 0.5])), grip]
+        centre = np.array([xs.mean() + 0.5, ys.mean() + 0.5])
+        return [past(grip, centre), past(grip, centre, REGION_SEED_HAND_SIZES), grip]
 
     return [past(grip, points[WRIST]), past(points[INDEX_TIP], points[INDEX_KNUCKLE]),
             past(points[INDEX_KNUCKLE], points[PINKY_KNUCKLE]), past(points[PINKY_KNUCKLE], points[INDEX_KNUCKLE]),
