@@ -79,10 +79,15 @@ SURE_HAND_SIZE = 0.15
 """Radius of the sure object (or static object) at its seed, in hand sizes (a fingertip)."""
 
 REGION_SEED_HAND_SIZES = 0.5
-"""How far past the grip of a hand found only by colour and motion a second object seed
-lies, in hand sizes: such a region may leave out a fringe of skin at its tip, which a seed
-just past the grip cuts out as the object (a third of a hand size was not always past it on
-the rendered clips)."""
+"""How far from the grip of a hand found only by colour and motion the seeds ahead of it and
+to its sides lie, in hand sizes: such a region may leave out a fringe of skin at its tip,
+which a seed just past the grip cuts out as the object (a third of a hand size was not
+always past it on the rendered clips)."""
+
+REGION_SEED_TURNS = (-np.pi / 2, 0.0, np.pi / 2)
+"""Directions [rad] of those seeds from the region's centre-to-grip direction: ahead, and to
+both sides (the region's farthest point is where the arm points, not where the fingers
+touch: on the rendered clips the object lay beside it as often as ahead)."""
 
 SEARCH_EDGES = 1.5
 """Half the side of the square GrabCut looks in, in longest edges of the expected object
@@ -363,18 +368,21 @@ def _object_seeds(points: np.ndarray, region: np.ndarray, grip: np.ndarray, size
     """(2,) [px] seeds where the object may be: past the fingertips (what the fingers press),
     past the index fingertip (what it pokes), past the index and the little finger's knuckles
     and past the thumb (what the fist holds sticks out at its sides); for a hand found only
-    as a ``region`` (H, W), past its grip away from the region's centre (just past, and
-    :data:`REGION_SEED_HAND_SIZES` past), and at its grip."""
+    as a ``region`` (H, W), just past its grip away from the region's centre,
+    :data:`REGION_SEED_HAND_SIZES` from it ahead and to both sides (:data:`REGION_SEED_TURNS`),
+    and at its grip."""
 
-    def past(point: np.ndarray, origin: np.ndarray, reach: float = SURE_HAND_SIZE) -> np.ndarray:
+    def past(point: np.ndarray, origin: np.ndarray, reach: float = SURE_HAND_SIZE, turn: float = 0.0) -> np.ndarray:
         away = point - origin
         norm = float(np.linalg.norm(away))
-        return point if norm < 1e-6 else point + away / norm * reach * size
+        cos, sin = np.cos(turn), np.sin(turn)
+        return point if norm < 1e-6 else point + np.array([[cos, -sin], [sin, cos]]) @ away / norm * reach * size
 
     if not np.isfinite(points).all():
         ys, xs = np.nonzero(region)
         centre = np.array([xs.mean() + 0.5, ys.mean() + 0.5])
-        return [past(grip, centre), past(grip, centre, REGION_SEED_HAND_SIZES), grip]
+        return [past(grip, centre), *(past(grip, centre, REGION_SEED_HAND_SIZES, turn) for turn in REGION_SEED_TURNS),
+                grip]
 
     return [past(grip, points[WRIST]), past(points[INDEX_TIP], points[INDEX_KNUCKLE]),
             past(points[INDEX_KNUCKLE], points[PINKY_KNUCKLE]), past(points[PINKY_KNUCKLE], points[INDEX_KNUCKLE]),
