@@ -64,6 +64,36 @@ def test_an_object_that_leaves_through_the_border_with_the_hand_is_in_doubt():
     assert not held_after_contact(vanish, CONTACT).any()
 
 
+def test_a_box_that_stops_a_pixel_short_of_the_border_still_leaves_the_view():
+    # Brought down toward the camera, out of the bottom of the view: the last box drawn ends
+    # ``short`` rows above the frame's last row.
+    def leaving(short):
+        bottom = H - short  # exclusive: the last row drawn is H - 1 - short
+        sinking = lambda k: (10 + 2 * max(k - 8, 0), min(16 + 2 * max(k - 8, 0), bottom), 15, 25) if k < 16 else None  # noqa: E731
+        return _masks(lambda k: (0, min(12 + 2 * max(k - 8, 0), bottom), 18, 22), sinking)
+
+    contact = np.arange(N) < 14
+    assert held_after_contact(leaving(1), contact).tolist() == [False] * 14 + [True] * 6
+    assert not held_after_contact(leaving(5), contact).any()  # vanished inside the image
+
+
+def test_a_small_held_object_is_read_at_the_masks_own_resolution():
+    # A 4 x 4 px object held still at the hand's tip to the end: averaged down to the optimiser's
+    # working resolution (a quarter) it straddles four pixels at a quarter each, and would seem
+    # to vanish in the middle of the image; read as drawn, it is in doubt after the signal.
+    demo = make_demonstration("pick_up", seed=0, image_size=(120, 160))
+    n = demo.num_frames
+    contact = np.arange(n) < n // 2
+    hand = np.zeros((n, 120, 160), np.float32)
+    hand[:, 20:62, 70:90] = 1
+    small = np.zeros_like(hand)
+    small[:, 62:66, 82:86] = 1
+    held = dataclasses.replace(demo, hand_mask=hand, object_mask=small, contact=contact)
+    evidence = read_evidence(held, {}, OptimizeConfig(image_scale=0.25), torch.device("cpu"))
+    assert evidence.inputs.masks.shape[-2:] == (30, 40) and evidence.inputs.masks[:, 1].max() < 0.5
+    assert evidence.held.tolist() == [False] * (n // 2) + [True] * (n - n // 2)
+
+
 def test_an_object_that_moves_on_after_the_hand_box_ends_was_carried():
     # The hand's boxes stop with the signal; the object's box goes on rising: carried.
     rising = _masks(lambda k: (0, 10, 18, 22) if k < 12 else None,
@@ -106,7 +136,7 @@ def test_a_lift_beside_a_static_box_says_nothing_of_a_hold():
     assert not held_after_contact(np.concatenate([hanging, static], 1), CONTACT).any()
 
 
-def test_the_held_ending_starts_with_the_hand_carrying_the_object_where_the_hand_is_unseen():
+def test_the_held_ending_starts_with_hand_and_object_together():
     n = 6
     object_pos = torch.tensor([[0.0, 0.5, 0.05]] * 3 + [[0.0, 0.4, 0.15], [0.0, 0.3, 0.2], [0.0, 0.25, 0.2]])
     hand_pos = torch.tensor([[0.0, 0.5, 0.1]] * 3 + [[0.3, 0.6, 0.4]] * 3)  # stage (a)'s free hand wanders off
@@ -117,9 +147,10 @@ def test_the_held_ending_starts_with_the_hand_carrying_the_object_where_the_hand
     hand_seen = np.arange(n) < 4  # the hand's box ends one frame after the signal
     carried = carried_start(start, signal, np.ones(n, bool), hand_seen)
     offset = hand_pos[2] - object_pos[2]
-    assert torch.allclose(carried.hand_pos[4:], object_pos[4:] + offset)  # carried where unseen
-    assert torch.equal(carried.hand_pos[:4], hand_pos[:4])  # kept where seen or in the signal
-    assert torch.equal(carried.object_pos, object_pos)
+    assert torch.allclose(carried.object_pos[3], hand_pos[3] - offset)  # with the hand where it is seen
+    assert torch.allclose(carried.hand_pos[4:], object_pos[4:] + offset)  # the hand with the object where unseen
+    assert torch.equal(carried.hand_pos[:4], hand_pos[:4]) and torch.equal(carried.object_pos[:3], object_pos[:3])
+    assert torch.equal(carried.object_pos[4:], object_pos[4:])
     assert carried_start(start, signal, signal, hand_seen) is start  # the variant as given: unchanged
 
 
@@ -151,16 +182,23 @@ def _ending_at(start: SceneTrajectories, height: float) -> SceneTrajectories:
     return dataclasses.replace(start, object_pos=object_pos)
 
 
+def _resting_under_the_hand(n: int, hand_height: float = 0.07) -> SceneTrajectories:
+    """A 6 cm cube on the ground at y = 0.5 m with the hand's tip above it at ``hand_height`` [m]."""
+    eye = torch.eye(3).expand(n, 3, 3)
+    return SceneTrajectories(torch.tensor([[0.0, 0.5, hand_height]]).repeat(n, 1), eye,
+                             torch.tensor([[0.0, 0.5, 0.03]]).repeat(n, 1), eye, torch.full((3,), 0.06),
+                             torch.zeros(0, 3), torch.zeros(0, 3, 3), torch.zeros(0, 3), torch.tensor(0.45),
+                             torch.tensor(0.5))
+
+
 def test_a_release_that_drops_what_stage_a_leaves_in_the_air_is_ruled_out():
     # A box pick-up's action phase ends while the hand still holds the object: both endings are tried.
     demo = make_demonstration("pick_up", seed=0, input="boxes", image_size=(60, 107), duration=2.0)
     seen = read_evidence(demo, {}, OptimizeConfig(), torch.device("cpu"))
     given = seen.inputs.contact_signal
     assert seen.held.any()
-    n, eye = demo.num_frames, torch.eye(3).expand(demo.num_frames, 3, 3)
-    scene = SceneTrajectories(torch.zeros(n, 3), eye, torch.tensor([[0.0, 0.5, 0.03]]).repeat(n, 1), eye,
-                              torch.full((3,), 0.06), torch.zeros(0, 3), torch.zeros(0, 3, 3), torch.zeros(0, 3),
-                              torch.tensor(0.45), torch.tensor(0.5))
+    n = demo.num_frames
+    scene = _resting_under_the_hand(n)
     on_ground, up = _ending_at(scene, 0.03), _ending_at(scene, 0.2)  # the object's bottom 0 or 17 cm up
 
     def choice(stage_a_end: SceneTrajectories, released_fit: float) -> str:
@@ -174,3 +212,23 @@ def test_a_release_that_drops_what_stage_a_leaves_in_the_air_is_ruled_out():
     # Stage (a) sets it down: the better fit decides.
     assert choice(on_ground, released_fit=0.5) == "released"
     assert choice(on_ground, released_fit=1.5) == "held"
+
+
+def test_a_release_whose_hand_hovers_off_the_object_it_is_seen_on_is_ruled_out():
+    # After the signal the masks show the hand on the object to the end. A release that keeps
+    # the hand's tip 15 cm off the object (along the camera's rays) contradicts them, however
+    # well it fits; one whose hand stays 2 cm off is for the fit to decide.
+    demo = make_demonstration("pick_up", seed=0, input="boxes", image_size=(60, 107), duration=2.0)
+    seen = read_evidence(demo, {}, OptimizeConfig(), torch.device("cpu"))
+    given, n = seen.inputs.contact_signal, demo.num_frames
+    assert (seen.held & seen.hand_seen).any()
+
+    def choice(hand_height: float) -> str:
+        released, held = _resting_under_the_hand(n, hand_height), _resting_under_the_hand(n)
+        own = [PhysicsHypothesis(0, released, given, None, None, fit=0.5),
+               PhysicsHypothesis(0, held, given | seen.held, None, None, fit=1.0)]
+        results = [PhysicalRollout(released, None, None, None), PhysicalRollout(held, None, None, None)]
+        return ["released", "held"][chosen_simulation(seen, own, results)]
+
+    assert choice(hand_height=0.06 + 0.15) == "held"
+    assert choice(hand_height=0.06 + 0.02) == "released"

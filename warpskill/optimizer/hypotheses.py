@@ -24,6 +24,7 @@ import numpy as np
 import torch
 
 from warpskill.contract.demonstration import Demonstration
+from warpskill.engine.distances import box_signed_distance
 from warpskill.nouns.typical import typical_size
 from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.guess import ObjectDepth, initial_guess
@@ -116,6 +117,11 @@ class Evidence:
         return tuple(max(edge, MIN_OBJECT_SIZE) for edge in sorted(self.typical_shape))
 
     @property
+    def hand_seen(self) -> np.ndarray:
+        """(N,) bool, the frames where the hand has a mask."""
+        return (self.inputs.masks[:, 0] > 0.5).flatten(1).any(1).cpu().numpy()
+
+    @property
     def placement(self) -> np.ndarray:
         """(N,) bool, the frames where the object may stand on the static box's top: where
         it may rest on it, else where it covers the box's top edge (``covering``)."""
@@ -146,10 +152,10 @@ def read_evidence(demo: Demonstration, known: dict[str, float], config: Optimize
     static_shapes = ()
     if weights.static_noun_size > 0:
         static_shapes = tuple(None if size is None else (size.height, size.width, size.depth) for size in statics)
-    held = held_after_contact(inputs.masks.cpu().numpy(), inputs.contact_signal)
+    full = demo.mask_channels()
+    held = held_after_contact(full, inputs.contact_signal)
     rest = cut = covering = below = np.zeros(demo.num_frames, dtype=bool)
     if demo.num_static:
-        full = demo.mask_channels()
         rest, cut = rests_on_static(full, inputs.contact_signal), cut_by_static(full, inputs.contact_signal)
         covering = covers_static_top(full, inputs.contact_signal)
         below = below_static_top_face(full, inputs.contact_signal)
@@ -274,12 +280,11 @@ def physics_hypotheses(evidence: Sequence[Evidence], candidates: Sequence[Candid
         variants = [signal] + ([signal | seen.held] if seen.held.any() else [])
         starts = [(candidates[winners[i]], None)] + [(c, c.placement) for c in candidates
                                                      if c.demo == i and c.placement is not None]
-        hand_seen = (seen.inputs.masks[:, 0] > 0.5).flatten(1).any(1).cpu().numpy()
         for candidate, placement in starts:
             start = candidate.parameters.scene().detached()
             for variant in variants:
                 contact = torch.as_tensor(variant, dtype=torch.float32, device=device)
-                hypotheses.append(PhysicsHypothesis(i, carried_start(start, signal, variant, hand_seen), variant,
+                hypotheses.append(PhysicsHypothesis(i, carried_start(start, signal, variant, seen.hand_seen), variant,
                                                     contact, placement))
     return hypotheses
 
@@ -287,20 +292,26 @@ def physics_hypotheses(evidence: Sequence[Evidence], candidates: Sequence[Candid
 def carried_start(start: SceneTrajectories, signal: np.ndarray, variant: np.ndarray,
                   hand_seen: np.ndarray) -> SceneTrajectories:
     """``start`` with the hand carrying the object in the frames that the contact ``variant``
-    (N,) adds to ``signal`` (N,) and where the hand has no mask (``hand_seen``, (N,) bool).
+    (N,) adds to ``signal`` (N,).
 
-    Stage (a) leaves the hand free where it has no mask; a held object moves with the hand,
-    so there the hand keeps its offset from the object at the signal's last frame, and the
-    physics starts from a hand that carries the object where the masks show it.
+    Stage (a) leaves hand and object apart there (neither the contact nor the resting priors
+    apply), each on its own mask's rays but at depths that need not agree; a held object moves
+    with the hand, so the physics starts from the two keeping their offset at the signal's
+    last frame. Where the hand has a mask (``hand_seen``, (N,) bool) the object goes with the
+    hand (the hand's mask is the larger and surer: a small object's may be a few pixels);
+    where it has none, the hand goes with the object.
     """
-    added = np.flatnonzero(np.asarray(variant, bool) & ~np.asarray(signal, bool) & ~np.asarray(hand_seen, bool))
-    if len(added) == 0:
+    added = np.asarray(variant, bool) & ~np.asarray(signal, bool)
+    if not added.any():
         return start
     end = int(np.flatnonzero(signal)[-1])
-    frames = torch.as_tensor(added, device=start.hand_pos.device)
-    hand_pos = start.hand_pos.clone()
-    hand_pos[frames] = start.object_pos[frames] + (start.hand_pos[end] - start.object_pos[end])
-    return replace(start, hand_pos=hand_pos)
+    offset = start.hand_pos[end] - start.object_pos[end]
+    seen = torch.as_tensor(np.flatnonzero(added & np.asarray(hand_seen, bool)), device=start.hand_pos.device)
+    unseen = torch.as_tensor(np.flatnonzero(added & ~np.asarray(hand_seen, bool)), device=start.hand_pos.device)
+    hand_pos, object_pos = start.hand_pos.clone(), start.object_pos.clone()
+    object_pos[seen] = start.hand_pos[seen] - offset
+    hand_pos[unseen] = start.object_pos[unseen] + offset
+    return replace(start, hand_pos=hand_pos, object_pos=object_pos)
 
 
 def settled_fit(frame_losses: torch.Tensor, contact: np.ndarray) -> float:
@@ -338,13 +349,15 @@ def chosen_simulation(seen: Evidence, own: Sequence[PhysicsHypothesis], results:
     object behind the box contradicts the masks there.
 
     Where the object may still be held after the contact signal ends, a simulation of the
-    signal as given (the object released) that ends the object more than :data:`DROP` lower
-    than stage (a) does contradicts them too: stage (a) fits each frame's masks without
-    physics, and an object it leaves in the air at the end, which the release drops, was held.
+    signal as given (the object released) contradicts them too where it ends the object more
+    than :data:`DROP` lower than stage (a) does (stage (a) fits each frame's masks without
+    physics, and an object it leaves in the air at the end, which the release drops, was
+    held), or where its hand stays off the object while the masks show it on it
+    (:func:`hovers_off_a_held_object`).
     """
     unhidden = bool(seen.below_top_face.any())
     contradicted = [(unhidden and ends_behind_static(result.scene)) or drops_a_held_object(seen, h, result)
-                    for h, result in zip(own, results)]
+                    or hovers_off_a_held_object(seen, h, result) for h, result in zip(own, results)]
     if logger.isEnabledFor(logging.DEBUG):
         for h, result, against in zip(own, results, contradicted):
             logger.debug("hypothesis %s, contact in %d frames: fit %.5f, ends %s the static%s",
@@ -355,11 +368,41 @@ def chosen_simulation(seen: Evidence, own: Sequence[PhysicsHypothesis], results:
 
 
 def drops_a_held_object(seen: Evidence, hypothesis: PhysicsHypothesis, result: PhysicalRollout) -> bool:
-    """Whether ``result`` releases the object at the contact signal's end (``hypothesis`` has
-    the signal as given, where ``seen`` has frames in which the object may still be held) and
+    """Whether ``result`` releases a possibly held object (:func:`releases_a_held_object`) and
     ends it more than :data:`DROP` below stage (a)'s last frame."""
-    released = bool(seen.held.any()) and np.array_equal(hypothesis.signal, seen.inputs.contact_signal)
-    return released and final_bottom(hypothesis.start) - final_bottom(result.scene) > DROP
+    return (releases_a_held_object(seen, hypothesis)
+            and final_bottom(hypothesis.start) - final_bottom(result.scene) > DROP)
+
+
+HOVER = 0.08
+"""[m] how far from the object's box a released hand's tip may stay on average, over the
+frames after the contact signal where the masks show the hand on the object, before the
+release is contradicted (:func:`hovers_off_a_held_object`): twice the hand's diameter."""
+
+
+def hovers_off_a_held_object(seen: Evidence, hypothesis: PhysicsHypothesis, result: PhysicalRollout) -> bool:
+    """Whether ``result`` releases a possibly held object (:func:`releases_a_held_object`) and
+    keeps its hand's tip on average more than :data:`HOVER` from the object's box over the
+    frames after the signal where the hand has a mask. The masks show the hand's box on the
+    object's there to the video's end (:func:`~warpskill.optimizer.inputs.held_after_contact`);
+    a hand that let go and stayed that far away, hidden along the camera's rays, is a
+    coincidence that holding the object explains (a lift read as a slide away on the ground).
+    """
+    if not releases_a_held_object(seen, hypothesis):
+        return False
+    frames = torch.as_tensor(np.flatnonzero(seen.held & seen.hand_seen), device=result.scene.hand_pos.device)
+    if len(frames) == 0:
+        return False
+    scene = result.scene
+    gap = box_signed_distance(scene.hand_pos[frames], scene.object_pos[frames], scene.object_rot[frames],
+                              scene.object_size).clamp_min(0.0)
+    return float(gap.mean()) > HOVER
+
+
+def releases_a_held_object(seen: Evidence, hypothesis: PhysicsHypothesis) -> bool:
+    """Whether ``hypothesis`` has the contact signal as given (the object let go at its end)
+    where ``seen`` has frames in which the object may still be held."""
+    return bool(seen.held.any()) and np.array_equal(hypothesis.signal, seen.inputs.contact_signal)
 
 
 def best_simulation(fits: Sequence[float], contradicted: Sequence[bool]) -> int:

@@ -158,7 +158,8 @@ def carried_into_view(masks: np.ndarray, contact: np.ndarray) -> np.ndarray:
 
 
 def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: int = 2,
-                       moved_share: float = 0.25, moved_px: float = 3.0, touch_share: float = 0.2) -> np.ndarray:
+                       moved_share: float = 0.25, moved_px: float = 3.0, touch_share: float = 0.2,
+                       border_share: float = 0.01) -> np.ndarray:
     """(N,) bool: frames after the contact signal's end in which the object may still be held.
 
     Annotators may end the action phase while the hand still holds the object: it is then
@@ -177,9 +178,13 @@ def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: in
       ``moved_px``), and objects do not move by themselves; or it hangs where the hand
       lifted it, away from the static boxes (:func:`_lifted_off`): an object let go in the
       air falls;
-    - an object that leaves the view after it last touched the image border in contact with
-      the hand (or with no hand box) left with the hand; one that vanishes in the middle of
-      the image was not.
+    - an object that leaves the view after it last touched the image border (to within
+      ``border_share`` of the frame's larger side: a drawn box may stop a pixel or two short
+      of it) in contact with the hand (or with no hand box) left with the hand; one that
+      vanishes in the middle of the image was not.
+
+    Read them at the masks' own resolution: a small object's mask, averaged down, can fade
+    below one half in the frames where the hand covers most of it and seem to vanish there.
 
     Whether it is really held there is for the physics to decide (see
     :func:`warpskill.optimize`); elsewhere, and when the run does not reach the video's
@@ -194,6 +199,8 @@ def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: in
             pixels of an annotator's jitter are no motion).
         touch_share: the gap between the object's and the hand's boxes that still counts
             as touching [share of the object box's larger side; at least 1 px].
+        border_share: how close to the image border [share of the frame's larger side; at
+            least 1 px] a box counts as touching it.
     """
     N = len(contact)
     out = np.zeros(N, dtype=bool)
@@ -207,7 +214,9 @@ def held_after_contact(masks: np.ndarray, contact: np.ndarray, *, min_frames: in
         near = np.maximum(touch_share * np.maximum(obj[:, 2] - obj[:, 0], obj[:, 3] - obj[:, 1]), 1.0)
         attached = ((hand[:, 0] <= obj[:, 2] + near) & (obj[:, 0] <= hand[:, 2] + near)
                     & (hand[:, 1] <= obj[:, 3] + near) & (obj[:, 1] <= hand[:, 3] + near))
-        at_border = visible & ((obj[:, 0] <= 0) | (obj[:, 1] <= 0) | (obj[:, 2] >= w - 1) | (obj[:, 3] >= h - 1))
+        edge = max(border_share * max(h, w), 1.0)
+        at_border = visible & ((obj[:, 0] <= edge) | (obj[:, 1] <= edge)
+                               | (obj[:, 2] >= w - 1 - edge) | (obj[:, 3] >= h - 1 - edge))
     end = on[-1]
     seen = np.flatnonzero(visible[: end + 1])
     gone = False
