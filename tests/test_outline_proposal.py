@@ -212,9 +212,10 @@ def test_a_static_noun_for_an_action_without_a_static_object_is_refused():
         propose_outline(frames[:2], "pick_up", fps=FPS, static_noun="box")
 
 
-def _footage_folder(folder, clips):
+def _footage_folder(folder, clips, statics=1):
     """A real-footage folder (docs/formats.md) of rendered clips: clip id -> (frames, object masks,
-    static mask), every frame annotated with the object's and the static object's boxes."""
+    static mask), every frame annotated with the object's box and the static object's, boxed
+    ``statics`` times (as people box a puzzle and the piece of it around the slot)."""
     entries = {}
     for clip_id, (frames, objects, static) in clips.items():
         (folder / "frames" / clip_id).mkdir(parents=True)
@@ -223,11 +224,11 @@ def _footage_folder(folder, clips):
             name = f"{clip_id}/{k + 1:04d}.jpg"
             cv2.imwrite(str(folder / "frames" / name), cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
             labels = []
-            for role, mask in (("object 0", obj), ("object 1", static)):
+            for role, mask in (("object 0", obj), *((f"object {k + 1}", static) for k in range(statics))):
                 ys, xs = np.nonzero(mask)
                 box = {"x1": int(xs.min()), "y1": int(ys.min()), "x2": int(xs.max()) + 1, "y2": int(ys.max()) + 1}
                 labels.append({"box2d": box, "gt_annotation": role})
-            entries[clip_id].append({"name": name, "gt_placeholders": ["box", "crate"], "labels": labels})
+            entries[clip_id].append({"name": name, "gt_placeholders": ["box"] + ["crate"] * statics, "labels": labels})
     (folder / "annotations.json").write_text(json.dumps(entries))
     return folder
 
@@ -235,10 +236,14 @@ def _footage_folder(folder, clips):
 def test_the_footage_bench_without_an_outline_scores_the_proposals_and_counts_a_refusal_as_zero(tmp_path):
     from warpskill.bench.footage import bench_footage, footage_table
 
-    folder = _footage_folder(tmp_path / "footage", {"7": _proposed("put_onto")[:3], "8": _render(with_hand=False)})
+    clips = {"7": _proposed("put_onto")[:3], "8": _render(with_hand=False)}
+    folder = _footage_folder(tmp_path / "footage", clips, statics=2)
     scores = bench_footage(folder, tmp_path / "out", no_outline=True, quiet=True)
     taken, refused = scores["7"], scores["8"]
     assert taken.refused is None and len(taken.ious["object"]) == 44 and np.max(taken.ious["object"]) > 0.5
+    # the one proposed static object scored against both boxes of it
+    first, second = taken.ious["static"][:44], taken.ious["static"][44:]
+    assert len(second) == 44 and (first == second).all() and np.mean(second >= 0.5) > 0.5
     assert refused.refused.startswith("no hand in any of the 44 frames") and not refused.ious["object"].any()
     assert "8 refused: no hand" in footage_table(scores)
     assert sorted(path.name for path in (tmp_path / "out" / "proposals").iterdir()) == ["7.png", "8.png"]
