@@ -235,6 +235,16 @@ def test_an_object_that_covers_a_narrower_static_box_top_edge_is_tried_on_it_too
                 assert placement.frames.bool().tolist() == [False] * 12 + [True] * 8
 
 
+def test_a_put_behind_tries_behind_the_static_box_without_being_asked():
+    # The action names the relation: its placement goes to the physics by default; a put onto's does not.
+    cpu = torch.device("cpu")
+    demo = _box_demonstration((12, 21, 22, 38), (20, 34, 24, 36))
+    for action, depths in (("put_behind", [ObjectDepth.STATIC, ObjectDepth.BEHIND]), ("put_onto", [ObjectDepth.STATIC])):
+        seen = read_evidence(replace(demo, action=action), {}, OptimizeConfig(), cpu)
+        placements = [c.placement.depth for c in stage_a_candidates([seen], 0.45, cpu) if c.placement is not None]
+        assert placements == depths
+
+
 def _one_box_scene(object_z, object_size):
     eye = torch.eye(3)
     return SceneTrajectories(

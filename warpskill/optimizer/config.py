@@ -35,7 +35,8 @@ class OptimizeConfig:
     converge_window: int = 30
     converge_tolerance: float = 1e-3
     warmup_iterations: int = 10  #: the learning rate ramps up linearly over these iterations
-    behind_placement: bool = False  #: also try the object on the ground behind the static box (ObjectDepth.BEHIND)
+    #: try the object on the ground behind the static box (ObjectDepth.BEHIND) for every action, not only put behind
+    behind_placement: bool = False
     checkpoint_every: int = 25  #: iterations between checkpoint writes
     weights: LossWeights = field(default_factory=LossWeights)
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)

@@ -200,11 +200,13 @@ def stage_a_candidates(evidence: Sequence[Evidence], typical_camera_height: floa
                        device: torch.device, *, behind: bool = False) -> list[Candidate]:
     """Every demonstration from each object-depth hypothesis, demonstration by demonstration.
 
-    "On the static" (and, with ``behind``, "behind the static") is tried only where the object
-    may stand on the static box's top (:attr:`Evidence.placement`): the same boxes fit a flat
-    deep box with the object on it and a tall thin one with the object behind it. The behind
-    placement is off by default: it fixed put behind on turned and narrow boxes but broke put
-    onto where the real videos' situations are generated (docs/results-history.md). A guess equal to an earlier
+    "On the static" and, where the action is a put behind (with ``behind``: any action),
+    "behind the static" are tried only where the object may stand on the static box's top
+    (:attr:`Evidence.placement`): the same boxes fit a flat deep box with the object on it and
+    a tall thin one with the object behind it. The action names the relation the person
+    made, so it says which placement is worth a physics run; which one happened is still for
+    the masks to say. Tried for every action, "behind" broke put onto where the real videos'
+    situations are generated (docs/results-history.md). A guess equal to an earlier
     one of the same demonstration (the object's box bottom stays on one row) is fitted once.
     The hand's tilt read off its foreshortening starts the hand only where the scale is free:
     with a known length it was a worse start.
@@ -214,8 +216,8 @@ def stage_a_candidates(evidence: Sequence[Evidence], typical_camera_height: floa
         given = seen.inputs
         for hypothesis in ObjectDepth:
             placed = seen.placement
-            if (hypothesis.placed and not placed.any()) or (hypothesis is ObjectDepth.BEHIND and not behind):
-                continue
+            if (hypothesis.placed and not placed.any()) or (
+                    hypothesis is ObjectDepth.BEHIND and not (behind or seen.demo.action == "put_behind")):
                 continue
             guess = initial_guess(given.masks.cpu().numpy(), given.contact_signal, given.intrinsics,
                                   seen.demo.num_static, object_depth=hypothesis, resting=placed,
