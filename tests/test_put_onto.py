@@ -10,7 +10,7 @@ import torch
 
 from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.evaluation import evaluate
-from warpskill.engine.distances import support_height
+from warpskill.engine.distances import static_overlap_depth, support_height
 from warpskill.engine.records import Rollout
 from warpskill.engine.projection import camera_rotation, project
 from warpskill.engine.rotations import yaw_rotation
@@ -373,3 +373,25 @@ def test_only_the_physics_objective_asks_an_object_on_the_box_edge_to_move_back(
     fit = initial_objective(scene, masks, targets, torch.zeros(2), 12.0, weights, behind=frames)
     assert float(physics["behind the static"]) == pytest.approx(weights.penetration * 0.03**2 / 2, rel=1e-4)
     assert float(fit["behind the static"]) == 0.0
+
+
+def test_the_static_overlap_depth_is_the_shortest_way_out():
+    static = (torch.tensor([[0.0, 0.0, 0.1]]), torch.eye(3)[None], torch.tensor([[0.3, 0.3, 0.2]]))
+    eye, cube = torch.eye(3), torch.full((3,), 0.1)
+    depth = lambda pos: float(static_overlap_depth(torch.tensor(pos), eye, cube, *static)[0])  # noqa: E731
+    assert depth([0.12, 0.0, 0.05]) == pytest.approx(0.08)  # 8 cm in through the side face, 2 cm out
+    assert depth([0.0, 0.0, 0.22]) == pytest.approx(0.03)  # sunk 3 cm into the top: up is the shortest
+    assert depth([0.0, 0.0, 0.25]) == 0.0 and depth([0.25, 0.0, 0.05]) == 0.0  # on the top, beside it
+    pos = torch.tensor([0.11, 0.02, 0.07], dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(lambda p: static_overlap_depth(p, eye.double(), cube.double(),
+                                                                    *(x.double() for x in static)), (pos,))
+
+
+def test_the_first_fit_keeps_the_object_out_of_the_static_box():
+    # A carried object passing through the box's side is penalised as one sunk in the ground is.
+    weights, masks = LossWeights(), torch.zeros(2, 3, 8, 8)
+    inside, over = _one_box_scene(0.05, [0.1, 0.1, 0.1]), _one_box_scene(0.25, [0.1, 0.1, 0.1])
+    terms = [initial_objective(s, masks, MaskTargets(masks), torch.ones(2), 12.0, weights)["penetration"]
+             for s in (inside, over)]
+    assert float(terms[0]) == pytest.approx(weights.penetration * 0.2**2, rel=1e-4)  # 20 cm to any way out
+    assert float(terms[1]) == 0.0

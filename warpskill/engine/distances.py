@@ -48,6 +48,13 @@ def static_exits(pos: torch.Tensor, rot: torch.Tensor, size: torch.Tensor, stati
                         high[..., 1] + half[:, 1], half[:, 2] - low[..., 2]], -1)
 
 
+def static_overlap_depth(pos: torch.Tensor, rot: torch.Tensor, size: torch.Tensor, static_pos: torch.Tensor,
+                         static_rot: torch.Tensor, static_size: torch.Tensor) -> torch.Tensor:
+    """How deep [m] each cuboid reaches into each static cuboid, (..., K): the shortest of
+    :func:`static_exits`'s ways out where all five are positive, else 0."""
+    return static_exits(pos, rot, size, static_pos, static_rot, static_size).amin(-1).clamp_min(0.0)
+
+
 def support_height(points: torch.Tensor, static_pos: torch.Tensor, static_rot: torch.Tensor, static_size: torch.Tensor) -> torch.Tensor:
     """Height [m] of the surface under each point: a static cuboid's top where the point
     lies over its footprint, else the ground (0).

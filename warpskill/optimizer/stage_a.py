@@ -16,6 +16,7 @@ import torch
 from warpskill.engine.distances import (
     box_signed_distance,
     lowest_corner_height,
+    static_overlap_depth,
     support_height,
 )
 from warpskill.engine.rotations import rotation_from_6d, rotation_to_6d, yaw_rotation
@@ -143,6 +144,8 @@ def initial_objective(
     moved = ((scene.object_pos[1:] - scene.object_pos[:-1]) * fps).square().sum(-1)
     low = lowest_corner_height(scene.object_pos, scene.object_rot, scene.object_size)
     below = (-low).clamp_min(0.0).square().mean() + (-scene.hand_pos[:, 2]).clamp_min(0.0).square().mean()
+    inside = static_overlap_depth(scene.object_pos, scene.object_rot, scene.object_size, scene.static_pos,
+                                  scene.static_rot, scene.static_size)  # (N, K)
     support = support_height(scene.object_pos, scene.static_pos, scene.static_rot, scene.static_size)
     return {
         "perceptual": perceptual_loss(rendered, targets, weights),
@@ -158,7 +161,8 @@ def initial_objective(
         # under it (the ground or a static cuboid's top) ...
         "resting": weights.resting * (free_steps * moved).mean()
         + weights.penetration * (free * (low - support).square()).mean(),
-        # ... and nothing goes through the ground.
-        "penetration": weights.penetration * below,
+        # ... and nothing goes through the ground, nor the object through a static cuboid
+        # (carried across one, it goes over it: the physics would push it up onto the top).
+        "penetration": weights.penetration * (below + inside.square().sum(-1).mean()),
     } | scene_priors(scene, weights, supported, behind, typical_edges=typical_edges,
                    static_edges=static_edges)
