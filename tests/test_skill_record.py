@@ -276,3 +276,23 @@ def test_layout_arrays_round_trip():
     assert Layout.from_arrays(layout.to_arrays()) == layout
     assert Layout.from_arrays({}) is None
     assert "17.2 deg" in layout.describe()
+
+
+def test_an_object_carried_in_and_set_down_soon_stays_on_the_table_in_a_layout():
+    # Held from the first frame 8 cm up, it comes down to the table by the grasp's onset and is then
+    # carried as demonstrated: started lowered onto the table, its path must not run under it
+    # while the lowering shrinks toward the release.
+    recon = truth("put_in_front_of")
+    k_on = int(np.flatnonzero(recon.grasped > 0.5)[0])
+    descent = np.linspace(1.0, 0.0, k_on)[:, None] * np.array([[-0.05, 0.0, 0.08]])
+    object_pos, hand_pos, grasped = recon.object_pos.copy(), recon.hand_pos.copy(), recon.grasped.copy()
+    object_pos[:k_on] = recon.object_pos[k_on] + descent
+    hand_pos[:k_on] = recon.hand_pos[k_on] + descent
+    grasped[:k_on] = 1.0
+    carried_in = dataclasses.replace(recon, object_pos=object_pos, hand_pos=hand_pos, grasped=grasped)
+    laid = apply_skill(skill_from(carried_in), demonstrated_layout(skill_from(carried_in)))
+    bottoms = laid.object_corners()[:, :, 2].min(axis=1)
+    demonstrated = carried_in.object_corners()[:, :, 2].min(axis=1)
+    assert np.all(bottoms >= np.minimum(demonstrated, 0.0) - 1e-9)  # no lower than the table, or the demonstration
+    np.testing.assert_allclose(bottoms[0], 0.0, atol=1e-9)  # started on the table
+    assert evaluate(laid).checks["above_ground"]

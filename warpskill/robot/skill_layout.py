@@ -192,7 +192,9 @@ def _motion(skill: Skill) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarra
     says nothing of how it rests, and would stand it on an edge or on end), a pushed or
     pulled one onto the face nearest down (it was seen on the table), and
     lowered onto the table (its bottom at z = 0), waits there until frame k, then follows the
-    demonstrated path, the lowering shrinking linearly to none at the release (or the last frame).
+    demonstrated path, the lowering shrinking linearly to none at the release (or the last frame)
+    and never taking the object's bottom below the table where the demonstration keeps it above
+    (a path that comes down to the table soon after the take-over would otherwise run under it).
     """
     k = takeover(skill)
     if not _carried_in(skill):
@@ -204,13 +206,27 @@ def _motion(skill: Skill) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarra
     start_pos = start_pos - np.array([0.0, 0.0, drop])
     _, k_off = skill.frames()
     end = (skill.num_frames - 1) if k_off is None else k_off
-    motion_pos = skill.object_motion_pos - skill.object_motion_pos[k]
-    motion_pos[:k] = 0.0
-    frames = np.arange(skill.num_frames)
-    motion_pos[:, 2] += drop * np.clip((frames - k) / max(end - k, 1), 0.0, 1.0)
     motion_rot = skill.object_motion_rot @ skill.object_motion_rot[k].T  # the object's turn since frame k
     motion_rot[:k] = np.eye(3)
+    frames = np.arange(skill.num_frames)
+    lowering = drop * (1.0 - np.clip((frames - k) / max(end - k, 1), 0.0, 1.0))
+    lowering = np.minimum(lowering, _clearance(skill, motion_rot @ start_rot))
+    motion_pos = skill.object_motion_pos - skill.object_motion_pos[k]
+    motion_pos[:, 2] += drop - lowering
+    motion_pos[:k] = 0.0
     return start_pos, start_rot, motion_pos, motion_rot
+
+
+def _clearance(skill: Skill, rot: np.ndarray) -> np.ndarray:
+    """(N,) how far [m] the demonstrated object path can come down, per frame, with the object
+    turned to ``rot`` (N, 3, 3), before its bottom goes below the table or below the
+    demonstrated bottom where that is under the table (never negative)."""
+    up = np.array([0.0, 0.0, 1.0])
+    z = skill.object_start_pos[2] + skill.object_motion_pos[:, 2]
+    demo_rot = skill.object_motion_rot @ skill.object_start_rot
+    demo_bottom = z - np.array([support_extent(r, skill.object_size, up) for r in demo_rot])
+    bottom = z - np.array([support_extent(r, skill.object_size, up) for r in rot])
+    return np.maximum(bottom - np.minimum(demo_bottom, 0.0), 0.0)
 
 
 def apply_skill(skill: Skill, layout: Layout) -> Reconstruction:
