@@ -276,7 +276,7 @@ def test_the_on_static_placement_keeps_the_object_centre_off_the_top_face_edge()
         scene.object_pos[:, 0] = x
         scene.object_pos.requires_grad_(True)
         penalty = off_static_penalty(scene, supported, weights)
-        assert (float(penalty) > 1e-6) is penalised, x
+        assert (float(penalty.detach()) > 1e-6) is penalised, x
         if penalised:
             penalty.backward()
             assert scene.object_pos.grad[:, 0].sum() > 0  # descent moves the centre back over the box
