@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import Sequence
 
 import numpy as np
@@ -30,10 +31,10 @@ from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.guess import ObjectDepth, initial_guess
 from warpskill.optimizer.inputs import (
     WorkingInputs,
+    below_static_top_face,
     covers_static_top,
     cut_by_static,
     held_after_contact,
-    below_static_top_face,
     rests_on_static,
     working_inputs,
 )
@@ -116,9 +117,9 @@ class Evidence:
             return None
         return tuple(max(edge, MIN_OBJECT_SIZE) for edge in sorted(self.typical_shape))
 
-    @property
+    @cached_property
     def hand_seen(self) -> np.ndarray:
-        """(N,) bool, the frames where the hand has a mask."""
+        """(N,) bool, the frames where the hand has a mask (read once)."""
         return (self.inputs.masks[:, 0] > 0.5).flatten(1).any(1).cpu().numpy()
 
     @property
