@@ -45,7 +45,7 @@ def add_optimize_options(parser: argparse.ArgumentParser, *, known_names: bool =
     group.add_argument("--device", default=None, help="cpu (default) or cuda")
     group.add_argument("--iterations", type=int, default=None, help="physics-stage iterations (config.iterations)")
     group.add_argument("--seed", type=int, default=None,
-                       help="Torch seed, default 0 (results are deterministic per seed and device)")
+                       help="Torch seed, default 0 (on the CPU results repeat exactly per seed; on CUDA they vary slightly)")
     group.add_argument("--init-only", action="store_true", help="stop after the physics-free initialisation")
     names = "(also object_width, object_depth, camera_height, static_height, static_width, static_depth)"
     if known_names:

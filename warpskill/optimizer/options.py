@@ -29,7 +29,8 @@ class OptimizeOptions:
 
     Attributes:
         device: torch/Warp device (``"cpu"``, ``"cuda"``, ``"cuda:1"``); None: the CPU.
-        seed: seed of torch's generator (results are deterministic per seed and device).
+        seed: seed of torch's generator (on the CPU results repeat exactly per seed; CUDA's atomic sums
+            vary in order, so runs there differ slightly).
         init_only: stop after stage (a) (the paper's "initialisation only" ablation).
         known: lengths known in advance [m] as sorted ``(name, metres)`` pairs, which fix
             the scene's scale; names in :data:`warpskill.optimizer.known.KNOWN_LENGTHS`.
