@@ -62,6 +62,7 @@ MITER_CAP = 4.0
 """Bounds pad the hull by CUTOFF * sigma times the largest corner miter, capped here."""
 
 _EMPTY_BOUND = wp.constant(wp.vec4(1.0e30, 1.0e30, -1.0e30, -1.0e30))
+_ALL_BITS = wp.constant(wp.uint32(0xFFFFFFFF))  # typed: a bare literal is emitted as an int32 that overflows
 _LAYERS = wp.types.vector(length=MAX_PRIMITIVES, dtype=wp.float32)  # a value per primitive at a pixel
 _EDGES = wp.types.vector(length=MAX_PRIMITIVES, dtype=wp.int32)  # a hull edge per primitive at a pixel
 _EDGE_SETS = wp.types.vector(length=MAX_PRIMITIVES, dtype=wp.uint32)  # hull edges (bit e) per primitive in a tile
@@ -268,7 +269,7 @@ def _tile_classes(
         b = o.bound[f, k]
         count = o.count[f, k]
         if count > 0 and b[2] >= lo[0] and b[0] <= hi[0] and b[3] >= lo[1] and b[1] <= hi[1]:
-            floor, top = _distance_bounds(o, f, k, wp.uint32(0xFFFFFFFF) >> wp.uint32(32 - count), lo, hi)
+            floor, top = _distance_bounds(o, f, k, _ALL_BITS >> wp.uint32(32 - count), lo, hi)
             if top < -limit:
                 full = full | (1 << k)
             elif floor <= limit:
