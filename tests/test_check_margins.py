@@ -110,12 +110,16 @@ def test_the_share_of_frames_checks_measure_the_frame_that_decides():
 
 
 def test_margins_travel_with_the_outcome_table_and_older_tables_still_load(tmp_path):
-    outcome = judged("7", evaluate(truth("put_behind")))
+    kept = {"start": "behind the static", "contact_frames": 9, "fit": 2.5, "ends_behind_static": True,
+            "contradicted": False, "chosen": True}
+    recon = dataclasses.replace(truth("put_behind"), hypotheses=json.dumps([kept]))
+    outcome = judged("7", recon, evaluate(recon))
     assert outcome.margins and outcome.closest_call()[1] > 0 and outcome.closest_text().endswith(" m")
+    assert outcome.hypotheses == [kept]
     write_outcomes(tmp_path / "now", [outcome])
     assert load_outcomes(tmp_path / "now")["7"] == outcome
     row = json.loads((tmp_path / "now" / "outcomes.json").read_text())["cases"][0]
-    old_row = {key: value for key, value in row.items() if key != "margins"}
+    old_row = {key: value for key, value in row.items() if key not in ("margins", "hypotheses")}
     old = dict(old_row, success=False, failed_checks=["behind_static"])
     (tmp_path / "old.json").write_text(json.dumps({"cases": [old]}))
     before = load_outcomes(tmp_path / "old.json")["7"]

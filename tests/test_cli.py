@@ -12,6 +12,7 @@ import pytest
 
 import warpskill.synthetic
 from warpskill.cli import main
+from warpskill.cli.common import hypothesis_lines
 from warpskill.contract.demonstration import Demonstration
 from warpskill.contract.reconstruction import FIELD_SHAPES, Reconstruction
 from warpskill.synthetic import make_demonstration
@@ -71,6 +72,9 @@ def test_optimize_writes_the_reconstruction_pictures_and_evaluation(optimized, d
         image = iio.imread(out / name)
         assert image.ndim == 3 and image.shape[0] > 100 and image.shape[1] > 100
     assert re.fullmatch(r"pick_up: (success|failure \(.+\))", _evaluation_line(stdout, "pick_up"))
+    judged = recon.judgements()
+    assert sum(item["chosen"] for item in judged) == 1
+    assert set(hypothesis_lines(judged)) <= set(stdout.splitlines())
     assert "initialisation" not in stderr and "physics" not in stderr  # --quiet: no progress bars
 
 
@@ -326,3 +330,16 @@ def test_optimize_on_ray_workers_each_into_its_folder_and_a_rerun_skips_them(dem
     assert main(argv[:3] + argv[4:]) == 0  # without the broken one: both done before, nothing runs
     printed = capsys.readouterr().out
     assert f"{demo_file.stem}: done before" in printed and "push: done before" in printed
+
+
+def test_the_hypotheses_table_marks_the_one_kept_and_those_ruled_out():
+    judged = [{"start": "stage (a)", "contact_frames": 21, "fit": 2.7846, "ends_behind_static": True,
+               "contradicted": True, "chosen": False},
+              {"start": "on the static", "contact_frames": 33, "fit": 3.0328, "ends_behind_static": False,
+               "contradicted": False, "chosen": True}]
+    heading, ruled_out, kept = hypothesis_lines(judged)
+    assert heading.startswith("hypotheses (fit:")
+    assert ruled_out.split() == ("stage (a) contact 21 frames fit 2.785 ends behind the static "
+                                 "(ruled out by the masks)").split()
+    assert kept.split() == "on the static contact 33 frames fit 3.033 ends not behind the static (chosen)".split()
+    assert hypothesis_lines(judged[1:]) == []  # one simulation: nothing was chosen between

@@ -18,8 +18,10 @@ from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.guess import ObjectDepth, initial_guess
 from warpskill.optimizer.hypotheses import (
     PhysicsHypothesis,
+    Placement,
     best_simulation,
     chosen_simulation,
+    judged_simulations,
     read_evidence,
     settled_fit,
     stage_a_candidates,
@@ -209,6 +211,11 @@ def test_on_top_or_behind_is_chosen_by_the_evidence_of_a_generated_case(action, 
     recon = optimize(demo, config=OptimizeConfig(iterations=20, init_iterations=20), progress=False)
     verdict = evaluate(recon, action)
     assert verdict.success, verdict.checks
+    judged = recon.judgements()
+    assert len(judged) >= 2 and sum(j["chosen"] for j in judged) == 1
+    kept = next(j for j in judged if j["chosen"])
+    assert kept["fit"] == min(j["fit"] for j in judged if not j["contradicted"])
+    assert kept["ends_behind_static"] == (action == "put_behind")
 
 
 def _box_demonstration(object_after, static_box, scale=4):
@@ -338,6 +345,23 @@ def test_on_top_and_behind_are_chosen_by_their_fit_unless_no_box_could_hide_the_
     wider = read_evidence(_box_demonstration((14, 28, 14, 46), STATIC), {}, OptimizeConfig(), cpu)
     assert wider.resting.any() and not wider.below_top_face.any()
     assert chosen_simulation(wider, fitting((2.6, 2.8)), results) == 0
+
+
+def test_every_simulation_is_judged_and_the_one_kept_is_marked():
+    cpu = torch.device("cpu")
+    behind = _one_box_scene(0.05, [0.1, 0.1, 0.1])
+    behind.object_pos[-1, 1] = 0.2
+    on_top = _one_box_scene(0.25, [0.1, 0.1, 0.1])
+    results = [PhysicalRollout(scene, None, None, None) for scene in (behind, on_top)]
+    deep = read_evidence(_box_demonstration((14, 28, 24, 36), STATIC), {}, OptimizeConfig(), cpu)
+    placed = Placement(ObjectDepth.STATIC, torch.as_tensor(deep.placement, dtype=torch.float32))
+    own = [PhysicsHypothesis(0, behind, CONTACT, None, None, fit=2.6),
+           PhysicsHypothesis(0, on_top, CONTACT, None, placed, fit=2.8)]
+    judged = judged_simulations(deep, own, results)
+    # the better fit ends behind where no box could hide the bottom: ruled out, the other kept
+    assert [(j.start, j.fit, j.ends_behind_static, j.contradicted, j.chosen) for j in judged] == [
+        ("stage (a)", 2.6, True, True, False), ("on the static", 2.8, False, False, True)]
+    assert judged[1].as_dict()["contact_frames"] == int(CONTACT.sum())
 
 
 def test_an_object_bottom_below_the_static_top_face_within_its_columns_is_found_after_the_release():

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -20,6 +21,12 @@ N, K = 5, 2
 def rotation_z(angle: float) -> np.ndarray:
     c, s = math.cos(angle), math.sin(angle)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+JUDGED = [{"start": "stage (a)", "contact_frames": 3, "fit": 2.8, "ends_behind_static": True, "contradicted": False,
+           "chosen": False},
+          {"start": "on the static", "contact_frames": 3, "fit": 2.6, "ends_behind_static": False,
+           "contradicted": False, "chosen": True}]
 
 
 def valid_fields(num_static: int = K) -> dict[str, np.ndarray]:
@@ -47,6 +54,7 @@ def valid_fields(num_static: int = K) -> dict[str, np.ndarray]:
         "loss": np.array(0.25),
         "options": np.array('{"seed": 0}'),
         "object_noun": np.array("mug"),
+        "hypotheses": np.array(json.dumps(JUDGED)),
     }
 
 
@@ -70,6 +78,18 @@ def test_round_trip(num_static, tmp_path):
     assert str(loaded.action) == "put_onto"
 
 
+def test_the_hypotheses_record_reads_back_and_is_left_out_when_empty(tmp_path):
+    recon = Reconstruction(**valid_fields())
+    assert recon.judgements() == JUDGED
+    with pytest.raises(ReconstructionError, match="hypotheses: expected a JSON list of objects"):
+        Reconstruction(**{**valid_fields(), "hypotheses": np.array('{"start": "stage (a)"}')})
+    path = tmp_path / "reconstruction.npz"
+    Reconstruction(**{**valid_fields(), "hypotheses": np.array("")}).save(path)
+    with np.load(path) as saved:
+        assert "hypotheses" not in saved.files  # written as before the key
+    assert Reconstruction.load(path).judgements() == []
+
+
 def test_unknown_action_is_empty_string(tmp_path):
     assert str(Reconstruction(**{**valid_fields(), "action": None}).action) == ""
     fields = valid_fields()
@@ -90,6 +110,7 @@ BAD_FIELDS = {
     "image_size": (np.array([6.0, 8.0]), "integers"),
     "loss": (np.array([0.25]), "expected shape ()"),
     "action": (np.array("throw"), "unknown action"),
+    "hypotheses": (np.array("[{\"start\": "), "not JSON"),
 }
 
 

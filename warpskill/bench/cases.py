@@ -69,7 +69,7 @@ def run_case(vid: str, action: str | None, folder: Path, reconstruct: Callable[[
         outcome = failed_case(vid, action or "", record_failure(folder, exc))
         logger.info("%6s %-20s ERROR %s", vid, action or "?", outcome.note)
         return outcome if step is None or not action else dataclasses.replace(outcome, robot=step.skip(vid, action))
-    outcome = judged(vid, evaluation, errors)
+    outcome = judged(vid, made.recon, evaluation, errors)
     scale = f", scale {outcome.errors['scale']:.2f}" if "scale" in outcome.errors else ""
     logger.info("%6s %-20s %s  closest %s; %s%s", vid, action, outcome.verdict(), outcome.closest_text(), made.detail,
                 scale)

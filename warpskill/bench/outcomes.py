@@ -95,6 +95,9 @@ class CaseOutcome:
         robot: the robot step where it ran (:class:`RobotRecord`), else None.
         margins: check name -> its signed margin [m] (positive: passed with that much room);
             empty without a reconstruction, and in tables of older code.
+        hypotheses: the simulated hypotheses its reconstruction was chosen from, with their
+            fits (the reconstruction's ``hypotheses`` record, docs/formats.md); empty without
+            one, and in tables of older code.
     """
 
     case: str
@@ -105,6 +108,7 @@ class CaseOutcome:
     note: str = ""
     robot: RobotRecord | None = None
     margins: dict[str, float] = dataclasses.field(default_factory=dict)
+    hypotheses: list[dict] = dataclasses.field(default_factory=list)
 
     def closest_call(self) -> tuple[str, float] | None:
         """The check nearest to flipping and its margin [m] (negative: the case failed); None
@@ -138,11 +142,13 @@ class CaseOutcome:
         return cls(**dict(row, failed_checks=tuple(row["failed_checks"]), robot=RobotRecord.from_json(row.get("robot"))))
 
 
-def judged(case: str, evaluation: Evaluation, errors: dict[str, float] | None = None) -> CaseOutcome:
-    """The outcome of a case from its evaluation (and its ground-truth errors, if any)."""
+def judged(case: str, recon: Reconstruction, evaluation: Evaluation,
+           errors: dict[str, float] | None = None) -> CaseOutcome:
+    """The outcome of a case from its reconstruction's evaluation (and its ground-truth errors, if any)."""
     failed = tuple(name for name, ok in evaluation.checks.items() if not ok)
     kept = {key: float(errors[key]) for key in ERROR_KEYS if errors and key in errors and np.isfinite(errors[key])}
-    return CaseOutcome(case, evaluation.action, evaluation.success, failed, kept, margins=dict(evaluation.margins))
+    return CaseOutcome(case, evaluation.action, evaluation.success, failed, kept, margins=dict(evaluation.margins),
+                       hypotheses=recon.judgements())
 
 
 def failed_case(case: str, action: str, reason: str) -> CaseOutcome:
@@ -265,7 +271,7 @@ def evaluate_case(folder: Path, action: str | None = None) -> CaseOutcome:
     if demo_path.exists():
         truth = Demonstration.load(demo_path).truth
         errors = camera_frame_errors(recon, truth) if truth else None
-    return judged(folder.name, evaluation, errors)
+    return judged(folder.name, recon, evaluation, errors)
 
 
 def camera_frame_errors(recon, truth: dict[str, np.ndarray]) -> dict[str, float]:

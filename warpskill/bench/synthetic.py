@@ -132,7 +132,8 @@ def bench_synthetic(
                     if out is not None:
                         folder.save(recon, folder.initialisation if init_only else folder.reconstruction)
                 seconds.append(time.perf_counter() - start)
-                outcomes.append(replace(judged(f"{action}_{seed}", evaluation, errors["full method"][-1]), note=note))
+                outcome = judged(f"{action}_{seed}", recon, evaluation, errors["full method"][-1])
+                outcomes.append(replace(outcome, note=note))
                 if out is not None:
                     folder.save(demo, folder.demonstration)
                 logger.info("%-22s seed %d: init %s full %s  %6.1f s", action, seed,

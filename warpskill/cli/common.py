@@ -163,12 +163,30 @@ def reconstruct(demos, folders: list[Path], checkpoint: Path, options: OptimizeO
 
 
 def report(recon, action) -> None:
-    """Print whether ``recon`` meets ``action``'s success criteria, and which it fails (nothing without an action)."""
+    """Print whether ``recon`` meets ``action``'s success criteria, and which it fails (nothing
+    without an action); then the hypotheses it was chosen from, where there were several."""
     if action:
         result = evaluate(recon, action)
         failed = [name for name, ok in result.checks.items() if not ok]
         verdict = "success" if result.success else "failure (" + ", ".join(failed) + ")"
         print(f"{action}: {verdict}")
+    lines = hypothesis_lines(recon.judgements())
+    if lines:
+        print("\n".join(lines))
+
+
+def hypothesis_lines(judged: list[dict]) -> list[str]:
+    """A table of the simulated hypotheses (the reconstruction's ``hypotheses`` record), one line
+    each under a heading; none for fewer than two (nothing was chosen)."""
+    if len(judged) < 2:
+        return []
+    lines = ["hypotheses (fit: the masks' loss after the contact, lower fits better):"]
+    for item in judged:
+        where = {None: "", True: "  ends behind the static", False: "  ends not behind the static"}
+        mark = "  (chosen)" if item["chosen"] else "  (ruled out by the masks)" if item["contradicted"] else ""
+        lines.append(f"  {item['start']:<18s} contact {item['contact_frames']:3d} frames  fit {item['fit']:.3f}"
+                     f"{where[item['ends_behind_static']]}{mark}")
+    return lines
 
 
 def save_plan(plan, path: Path) -> None:

@@ -145,4 +145,6 @@ def _evaluate(args) -> int:
         room = "" if margin is None else f"  ({margin:+.3f} m to its limit)"
         print(f"  {'ok  ' if ok else 'FAIL'} {name}{room}")
     print(f"{action}: {'success' if result.success else 'failure'}")
+    for line in common.hypothesis_lines(recon.judgements()):
+        print(line)
     return 0 if result.success else 3

@@ -8,6 +8,7 @@ Units: metres, seconds, radians; poses in the world frame (z up, ground z = 0).
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 from collections.abc import Mapping
 
@@ -38,13 +39,15 @@ FIELD_SHAPES: dict[str, tuple[str | int, ...]] = {
     "loss": (),
     "options": (),
     "object_noun": (),
+    "hypotheses": (),
 }
 """Every reconstruction key and its shape; ``N`` frames and ``K`` static objects."""
 
 _INTEGER_FIELDS = ("image_size",)
-_STRING_FIELDS = ("action", "options", "object_noun")
-OPTIONAL_FIELDS = {"action": "", "options": "", "object_noun": ""}
-"""Keys a file may lack, and the value they then take (unknown action; options, noun not recorded)."""
+_STRING_FIELDS = ("action", "options", "object_noun", "hypotheses")
+OPTIONAL_FIELDS = {"action": "", "options": "", "object_noun": "", "hypotheses": ""}
+"""Keys a file may lack, and the value they then take (unknown action; options, noun, hypotheses not recorded)."""
+_OMITTED_WHEN_EMPTY = ("object_noun", "hypotheses")
 
 
 class ReconstructionError(ValueError):
@@ -184,6 +187,9 @@ class Reconstruction(SceneCounts):
     options: np.ndarray = dataclasses.field(default_factory=lambda: np.array(""))
     #: what the manipulated object is, as annotated (the demonstration's ``object_noun``); "" if unknown
     object_noun: np.ndarray = dataclasses.field(default_factory=lambda: np.array(""))
+    #: JSON list of the simulated hypotheses it was chosen from, one object each (``start``,
+    #: ``contact_frames``, ``fit``, ``ends_behind_static``, ``contradicted``, ``chosen``); "" if not recorded
+    hypotheses: np.ndarray = dataclasses.field(default_factory=lambda: np.array(""))
 
     def __post_init__(self) -> None:
         fields = {name: getattr(self, name) for name in FIELD_SHAPES}
@@ -191,6 +197,22 @@ class Reconstruction(SceneCounts):
             setattr(self, name, array)
         if self.num_frames == 0:
             raise ReconstructionError("t: expected at least one frame, got shape (0,)")
+        self.judgements()  # a record that does not parse is refused here, not where it is read
+
+    def judgements(self) -> list[dict]:
+        """The ``hypotheses`` record as a list of dicts (empty when not recorded).
+
+        Raises:
+            ReconstructionError: the record is not a JSON list of objects.
+        """
+        text = str(self.hypotheses)
+        try:
+            judged = json.loads(text) if text else []
+        except json.JSONDecodeError as exc:
+            raise ReconstructionError(f"hypotheses: not JSON ({exc})") from None
+        if not isinstance(judged, list) or not all(isinstance(item, dict) for item in judged):
+            raise ReconstructionError("hypotheses: expected a JSON list of objects")
+        return judged
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Reconstruction":
@@ -217,9 +239,9 @@ class Reconstruction(SceneCounts):
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the reconstruction ``.npz`` to ``path`` atomically (compressed): every key, but an
-        unknown ``object_noun`` (left out, a file is written as before the key)."""
+        unknown ``object_noun`` and unrecorded ``hypotheses`` (left out, a file is written as before those keys)."""
         save_npz_atomic(path, {name: getattr(self, name) for name in FIELD_SHAPES
-                               if name != "object_noun" or str(self.object_noun)})
+                               if name not in _OMITTED_WHEN_EMPTY or str(getattr(self, name))})
 
     def object_corners(self) -> np.ndarray:
         """(N, 8, 3) world corners [m] of the manipulated cuboid in every frame."""

@@ -11,13 +11,13 @@ keeps the one the masks support best after the release:
 3. :func:`stage_a_winners`: per demonstration, the rival with the lowest stage (a) loss;
 4. :func:`physics_hypotheses`: one :class:`PhysicsHypothesis` per start (the winner, and
    each placement against the static box) and contact signal variant;
-5. :func:`chosen_simulation`: the simulation that matches the masks best.
+5. :func:`judged_simulations`: each simulation judged, and the one that matches the masks best chosen.
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from functools import cached_property
 from typing import Sequence
 
@@ -341,6 +341,51 @@ DROP = 0.05
 assumes is contradicted (:func:`chosen_simulation`)."""
 
 
+@dataclass(frozen=True)
+class Judgement:
+    """One simulated hypothesis of a demonstration as :func:`judged_simulations` saw it (the
+    reconstruction's ``hypotheses`` record, docs/formats.md).
+
+    Attributes:
+        start: where its physics started: ``"stage (a)"`` (the rivals' winner) or its
+            placement (``"on the static"``, ``"behind the static"``).
+        contact_frames: frames in its contact signal (more than given: held to the end).
+        fit: its perceptual loss after the contact (:func:`settled_fit`; lower fits better).
+        ends_behind_static: whether its object ends behind the first static box; None without one.
+        contradicted: whether the masks rule it out (:func:`chosen_simulation` says when).
+        chosen: whether it is the simulation kept.
+    """
+
+    start: str
+    contact_frames: int
+    fit: float
+    ends_behind_static: bool | None
+    contradicted: bool
+    chosen: bool
+
+    def as_dict(self) -> dict:
+        """This judgement as JSON-ready values."""
+        return asdict(self)
+
+
+def judged_simulations(seen: Evidence, own: Sequence[PhysicsHypothesis],
+                       results: Sequence[PhysicalRollout]) -> list[Judgement]:
+    """One :class:`Judgement` per hypothesis of ``own`` (one demonstration's, with their final
+    ``results``), exactly one of them chosen (:func:`chosen_simulation`)."""
+    unhidden = bool(seen.below_top_face.any())
+    behind = [ends_behind_static(result.scene) if seen.demo.num_static else None for result in results]
+    contradicted = [bool((unhidden and ends_behind) or drops_a_held_object(seen, h, result)
+                         or hovers_off_a_held_object(seen, h, result))
+                    for h, result, ends_behind in zip(own, results, behind)]
+    chosen = best_simulation([h.fit for h in own], contradicted)
+    judged = [Judgement("stage (a)" if h.placement is None else h.placement.depth.value, int(h.signal.sum()),
+                        float(h.fit), ends_behind, against, k == chosen)
+              for k, (h, ends_behind, against) in enumerate(zip(own, behind, contradicted))]
+    for judgement in judged:
+        logger.debug("%s", judgement)
+    return judged
+
+
 def chosen_simulation(seen: Evidence, own: Sequence[PhysicsHypothesis], results: Sequence[PhysicalRollout]) -> int:
     """Index into ``own`` (one demonstration's hypotheses, with their final ``results``) of the
     simulation to keep: the best fit (:func:`settled_fit`) among those the masks do not
@@ -358,16 +403,7 @@ def chosen_simulation(seen: Evidence, own: Sequence[PhysicsHypothesis], results:
     held), or where its hand stays off the object while the masks show it on it
     (:func:`hovers_off_a_held_object`).
     """
-    unhidden = bool(seen.below_top_face.any())
-    contradicted = [(unhidden and ends_behind_static(result.scene)) or drops_a_held_object(seen, h, result)
-                    or hovers_off_a_held_object(seen, h, result) for h, result in zip(own, results)]
-    if logger.isEnabledFor(logging.DEBUG):
-        for h, result, against in zip(own, results, contradicted):
-            logger.debug("hypothesis %s, contact in %d frames: fit %.5f, ends %s the static%s",
-                         "stage (a)" if h.placement is None else h.placement.depth.value, int(h.signal.sum()), h.fit,
-                         "behind" if seen.demo.num_static and ends_behind_static(result.scene) else "not behind",
-                         ", contradicted" if against else "")
-    return best_simulation([h.fit for h in own], contradicted)
+    return next(k for k, judgement in enumerate(judged_simulations(seen, own, results)) if judgement.chosen)
 
 
 def drops_a_held_object(seen: Evidence, hypothesis: PhysicsHypothesis, result: PhysicalRollout) -> bool:

@@ -14,6 +14,7 @@ learning rate (:mod:`.loop`).
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 import os
 from dataclasses import replace
@@ -33,8 +34,9 @@ from warpskill.optimizer.config import OptimizeConfig
 from warpskill.optimizer.hypotheses import (
     Candidate,
     Evidence,
+    Judgement,
     PhysicsHypothesis,
-    chosen_simulation,
+    judged_simulations,
     physics_hypotheses,
     read_evidence,
     rival_groups,
@@ -300,20 +302,22 @@ def _stage_b_objective(hypotheses: Sequence[PhysicsHypothesis], evidence: Sequen
 def _chosen_reconstruction(demo: int, seen: Evidence, hypotheses: Sequence[PhysicsHypothesis],
                            results: Sequence[PhysicalRollout], losses: Sequence[float],
                            options: OptimizeOptions) -> Reconstruction:
-    """The reconstruction of demonstration ``demo`` from its chosen simulation
-    (:func:`~warpskill.optimizer.hypotheses.chosen_simulation`) among the final ``results``."""
+    """The reconstruction of demonstration ``demo`` from its chosen simulation among the final
+    ``results``, with every simulation's judgement (:func:`~warpskill.optimizer.hypotheses.judged_simulations`)."""
     own = [b for b, h in enumerate(hypotheses) if h.demo == demo]
-    b = own[chosen_simulation(seen, [hypotheses[b] for b in own], [results[b] for b in own])]
+    judged = judged_simulations(seen, [hypotheses[b] for b in own], [results[b] for b in own])
+    b = own[next(k for k, judgement in enumerate(judged) if judgement.chosen)]
     result = results[b]
     return _reconstruction(seen.demo, result.scene, result.rollout.grasp, result.rollout.grasped, losses[b],
-                           _with_known(options, seen.known))
+                           _with_known(options, seen.known), judged)
 
 
 def _reconstruction(
     demo: Demonstration, scene: SceneTrajectories, grasp: torch.Tensor, grasped: torch.Tensor, loss: float,
-    options: OptimizeOptions,
+    options: OptimizeOptions, judged: Sequence[Judgement] = (),
 ) -> Reconstruction:
-    """The docs/formats.md reconstruction of a per-frame scene, at the demonstration's full resolution."""
+    """The docs/formats.md reconstruction of a per-frame scene, at the demonstration's full
+    resolution, recording the ``judged`` simulations it was chosen from."""
     n = lambda x: x.detach().cpu().double().numpy()  # noqa: E731
     N = demo.num_frames
     return Reconstruction(
@@ -337,4 +341,5 @@ def _reconstruction(
         object_noun=options.object_noun or demo.object_noun or "",
         loss=np.float64(loss),
         options=options.to_json(),
+        hypotheses=json.dumps([judgement.as_dict() for judgement in judged]) if judged else "",
     )
