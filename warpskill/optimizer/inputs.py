@@ -131,6 +131,39 @@ def _boxes(masks: np.ndarray) -> np.ndarray:
     return out
 
 
+STEADY_SIZE = 0.1
+"""How far a static box's width and height may stray from their medians (a share of them) in
+a frame that measures the camera's motion (:func:`static_box_drift`): farther, and something
+covers part of the static object, or the image's border cuts it."""
+
+
+def static_box_drift(masks: np.ndarray) -> float:
+    """[px] How far the static objects' boxes wander over a video: per static box, the diagonal
+    of the range its centre covers over the frames where it is whole (off the image's borders)
+    and of steady size (:data:`STEADY_SIZE`); the largest of them, 0 without a static box.
+
+    Static objects do not move, so a box that does while keeping its size says the camera
+    moved (a phone in a hand), which the reconstruction's fixed camera cannot follow.
+
+    Args:
+        masks: (N, 2 + K, h, w) masks in [0, 1]: hand, object, statics.
+    """
+    h, w = masks.shape[-2:]
+    drift = 0.0
+    for k in range(2, masks.shape[1]):
+        boxes = _boxes(masks[:, k] > 0.5)
+        whole = np.isfinite(boxes).all(1)
+        whole[whole] = (boxes[whole, 0] > 0) & (boxes[whole, 1] > 0) & (boxes[whole, 2] < w - 1) & (boxes[whole, 3] < h - 1)
+        if not whole.any():
+            continue
+        sizes = boxes[whole, 2:] - boxes[whole, :2]
+        steady = (np.abs(sizes / np.median(sizes, 0) - 1.0) <= STEADY_SIZE).all(1)
+        centres = 0.5 * (boxes[whole][steady, :2] + boxes[whole][steady, 2:])
+        if len(centres):
+            drift = max(drift, float(np.hypot(*np.ptp(centres, 0))))
+    return drift
+
+
 def carried_into_view(masks: np.ndarray, contact: np.ndarray) -> np.ndarray:
     """(N,) bool: the frames before the contact signal's onset in which the object is already held.
 

@@ -45,6 +45,7 @@ from warpskill.optimizer.hypotheses import (
     stage_a_winners,
     unseen_before_contact,
 )
+from warpskill.optimizer.inputs import static_box_drift
 from warpskill.optimizer.known import check_known
 from warpskill.optimizer.loop import minimise
 from warpskill.optimizer.losses import MaskTargets, masks_loss
@@ -132,6 +133,8 @@ def optimize_many(
     nouns = [_object_noun(demo, options, known) for demo, known in zip(demos, knowns)]
     store = Checkpoint(checkpoint, _run_id(demos, options, backend, knowns, nouns))
     evidence = [read_evidence(demo, known, config, device, noun) for demo, known, noun in zip(demos, knowns, nouns)]
+    for i, demo in enumerate(demos):
+        _warn_of_a_moving_camera(demo, i if len(demos) > 1 else None)
 
     # Stage (a): each object-depth hypothesis; the depth hypotheses of a demonstration are
     # rivals, those clearly behind stop early (``config.rival_rungs``), the lowest loss wins.
@@ -187,6 +190,24 @@ def _object_noun(demo: Demonstration, options: OptimizeOptions, known: dict[str,
     elif noun and known:
         logger.warning("object noun %r: the known %s fixes the scale, so no size prior", noun, ", ".join(sorted(known)))
     return noun
+
+
+MOVING_CAMERA = 0.05
+"""[share of the image width] how far the static boxes may wander (:func:`~warpskill.optimizer.inputs.static_box_drift`)
+before one line says the camera seems to move: farther than boxes drawn by people jitter."""
+
+
+def _warn_of_a_moving_camera(demo: Demonstration, index: int | None) -> None:
+    """One line when ``demo``'s static boxes wander more than :data:`MOVING_CAMERA` (the
+    demonstration's ``index`` among several, else None): the reconstruction's camera is fixed,
+    so the fit after a camera move is looser, and the relation to the static may be misread."""
+    width = demo.image_size[1]
+    drift = static_box_drift(demo.mask_channels()) if demo.num_static else 0.0
+    if drift > MOVING_CAMERA * width:
+        which = "" if index is None else f"demonstration {index}: "
+        logger.warning("%sa static object's box moves %.0f px (%.0f %% of the width) at a steady size: the camera "
+                       "seems to move, and warpskill's camera is fixed, so the fit is looser", which, drift,
+                       100 * drift / width)
 
 
 def _run_id(demos: Sequence[Demonstration], options: OptimizeOptions, backend: Backend,
