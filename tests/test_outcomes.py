@@ -11,6 +11,7 @@ from test_evaluate import scene
 from warpskill.bench.outcomes import (
     CaseOutcome,
     RobotRecord,
+    close_choices,
     evaluate_folder,
     failed_case,
     flip_report,
@@ -147,3 +148,26 @@ def test_the_second_opinion_annotations_read_through_the_real_reader(tmp_path):
     truth = read_truth(tmp_path / "demos" / "push_left_to_right_s3.npz")
     assert demo.action == "push_left_to_right" and demo.num_frames == len(truth["object_pos"])
     assert demo.contact.any() and np.isfinite(truth["camera_height"])
+
+
+def _judged(start, fit, behind, *, chosen=False, contradicted=False):
+    return {"start": start, "contact_frames": 20, "fit": fit, "ends_behind_static": behind,
+            "contradicted": contradicted, "chosen": chosen}
+
+
+def test_the_closest_choices_are_the_narrowest_fits_between_the_two_sides_of_the_static():
+    near = CaseOutcome("6538", "put_behind", True, hypotheses=[
+        _judged("stage (a)", 2.0, True, chosen=True), _judged("on the static", 2.1, False),
+        _judged("behind the static", 2.05, True)])  # the same side: no rival
+    far = CaseOutcome("8801", "put_onto", False, ("over_static",), hypotheses=[
+        _judged("stage (a)", 3.0, True, chosen=True), _judged("on the static", 8.0, False)])
+    ruled_out = CaseOutcome("7", "put_onto", True, hypotheses=[
+        _judged("on the static", 2.0, False, chosen=True), _judged("stage (a)", 1.0, True, contradicted=True)])
+    no_static = CaseOutcome("601", "push_left_to_right", True,
+                            hypotheses=[_judged("stage (a)", 1.0, None, chosen=True)])
+    assert near.choice_gap() == pytest.approx(("stage (a)", "on the static", 0.05))
+    assert ruled_out.choice_gap() is None and no_static.choice_gap() is None
+    assert close_choices([far, ruled_out, near, no_static]) == (
+        "closest choices (the other side of the static fitting worse by): "
+        "6538 (ok) stage (a) over on the static by 5 %, 8801 (fail) stage (a) over on the static by 167 %")
+    assert close_choices([no_static]) == ""

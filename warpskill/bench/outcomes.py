@@ -115,6 +115,21 @@ class CaseOutcome:
         without margins."""
         return closest_call(self.margins)
 
+    def choice_gap(self) -> tuple[str, str, float] | None:
+        """How close its reconstruction came to ending on the static box's other side: the
+        chosen hypothesis's start, the start of the best-fitting one the masks allow that ends
+        on the other side (behind the static against not), and how much worse that one fits,
+        as a share of the chosen's fit; None where no such rival was simulated."""
+        kept = next((h for h in self.hypotheses if h["chosen"]), None)
+        if kept is None or kept["ends_behind_static"] is None:
+            return None
+        rivals = [h for h in self.hypotheses if not h["contradicted"]
+                  and h["ends_behind_static"] is not None and h["ends_behind_static"] != kept["ends_behind_static"]]
+        if not rivals:
+            return None
+        rival = min(rivals, key=lambda h: h["fit"])
+        return kept["start"], rival["start"], (rival["fit"] - kept["fit"]) / max(kept["fit"], 1e-9)
+
     def closest_text(self) -> str:
         """The closest call in words, ``behind_static +0.012 m``; empty without margins."""
         closest = self.closest_call()
@@ -395,6 +410,15 @@ def close_calls(outcomes: list[CaseOutcome], most: int = 5) -> str:
     nearest = sorted((o for o in outcomes if o.margins), key=lambda o: abs(o.closest_call()[1]))[:most]
     calls = [f"{o.case} ({'ok' if o.success else 'fail'}) {o.closest_text()}" for o in nearest]
     return f"closest calls: {', '.join(calls)}" if calls else ""
+
+
+def close_choices(outcomes: list[CaseOutcome], most: int = 5) -> str:
+    """The ``most`` cases whose reconstruction chose between ending behind the static box and
+    not by the narrowest fit (:meth:`CaseOutcome.choice_gap`), one line; empty where none did."""
+    gaps = sorted(((o, o.choice_gap()) for o in outcomes if o.choice_gap() is not None), key=lambda x: x[1][2])
+    choices = [f"{o.case} ({'ok' if o.success else 'fail'}) {kept} over {rival} by {100 * gap:.0f} %"
+               for o, (kept, rival, gap) in gaps[:most]]
+    return f"closest choices (the other side of the static fitting worse by): {', '.join(choices)}" if choices else ""
 
 
 def _listed(cases: list[str], most: int = 10) -> str:

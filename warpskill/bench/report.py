@@ -10,7 +10,15 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from warpskill.bench.outcomes import CaseOutcome, close_calls, flip_report, load_outcomes, save_outcomes, write_outcomes
+from warpskill.bench.outcomes import (
+    CaseOutcome,
+    close_calls,
+    close_choices,
+    flip_report,
+    load_outcomes,
+    save_outcomes,
+    write_outcomes,
+)
 
 
 def show(*blocks: str) -> None:
@@ -23,13 +31,14 @@ def record_outcomes(out: str | os.PathLike | None, outcomes: list[CaseOutcome], 
                     baseline: str | os.PathLike | None = None,
                     save_baseline: str | os.PathLike | None = None) -> None:
     """What every success benchmark does with its outcomes at the end: write the table into
-    ``out`` (if any), show the closest calls (where the outcomes have margins), the flips since
+    ``out`` (if any), show the closest calls (where the outcomes have margins) and choices (where
+    they have hypotheses on both sides of the static), the flips since
     ``baseline`` (if any), save a copy as ``save_baseline`` (if any)."""
     if out is not None:
         show(f"\noutcome table: {write_outcomes(out, outcomes)}")
-    calls = close_calls(outcomes)
-    if calls:
-        show(calls)
+    for line in (close_calls(outcomes), close_choices(outcomes)):
+        if line:
+            show(line)
     if baseline is not None:
         show("", flip_report(load_outcomes(baseline), {o.case: o for o in outcomes}, name=str(baseline)))
     if save_baseline is not None:
