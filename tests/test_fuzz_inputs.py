@@ -118,7 +118,7 @@ def check_reconstruction(recon: Reconstruction) -> None:
         assert value.shape == tuple(dims.get(size, size) for size in template), name
         if name == "action":
             assert value.dtype.kind == "U" and str(value) in ("", *ACTIONS)
-        elif name in ("options", "object_noun"):
+        elif name in ("options", "object_noun", "hypotheses"):
             assert value.dtype.kind == "U"
         elif name == "image_size":
             assert value.dtype == np.int64 and (value > 0).all()
