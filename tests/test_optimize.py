@@ -82,12 +82,13 @@ def test_reconstruction_has_the_formats_shapes_of_its_demonstration(which, reque
         "object_pos": (N, 3), "object_rot": (N, 3, 3), "object_size": (3,),
         "static_pos": (K, 3), "static_rot": (K, 3, 3), "static_size": (K, 3),
         "camera_K": (3, 3), "camera_elevation": (), "camera_height": (), "image_size": (2,),
-        "fps": (), "action": (), "object_noun": (), "loss": (), "options": (),
+        "fps": (), "action": (), "object_noun": (), "loss": (), "options": (), "hypotheses": (),
     }
     assert {name: getattr(recon, name).shape for name in FIELD_SHAPES} == expected
     for name in FIELD_SHAPES:
-        if name not in ("action", "object_noun", "options"):
+        if name not in ("action", "object_noun", "options", "hypotheses"):
             assert np.all(np.isfinite(getattr(recon, name))), name
+    assert sum(judgement["chosen"] for judgement in recon.judgements()) == 1
     np.testing.assert_array_equal(recon.camera_K, demo.intrinsics.K)
     assert tuple(recon.image_size) == demo.image_size == (60, 107)
     assert str(recon.action) == which
