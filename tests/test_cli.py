@@ -75,6 +75,7 @@ def test_optimize_writes_the_reconstruction_pictures_and_evaluation(optimized, d
     judged = recon.judgements()
     assert sum(item["chosen"] for item in judged) == 1
     assert set(hypothesis_lines(judged)) <= set(stdout.splitlines())
+    assert ("hypotheses (fit:" in stdout) == (len(judged) > 1)  # a table only where there was a choice
     assert "initialisation" not in stderr and "physics" not in stderr  # --quiet: no progress bars
 
 

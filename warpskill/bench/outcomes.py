@@ -415,7 +415,7 @@ def close_calls(outcomes: list[CaseOutcome], most: int = 5) -> str:
 def close_choices(outcomes: list[CaseOutcome], most: int = 5) -> str:
     """The ``most`` cases whose reconstruction chose between ending behind the static box and
     not by the narrowest fit (:meth:`CaseOutcome.choice_gap`), one line; empty where none did."""
-    gaps = sorted(((o, o.choice_gap()) for o in outcomes if o.choice_gap() is not None), key=lambda x: x[1][2])
+    gaps = sorted(((o, gap) for o in outcomes if (gap := o.choice_gap()) is not None), key=lambda pair: pair[1][2])
     choices = [f"{o.case} ({'ok' if o.success else 'fail'}) {kept} over {rival} by {100 * gap:.0f} %"
                for o, (kept, rival, gap) in gaps[:most]]
     return f"closest choices (the other side of the static fitting worse by): {', '.join(choices)}" if choices else ""

@@ -180,9 +180,9 @@ def hypothesis_lines(judged: list[dict]) -> list[str]:
     each under a heading; none for fewer than two (nothing was chosen)."""
     if len(judged) < 2:
         return []
+    where = {None: "", True: "  ends behind the static", False: "  ends not behind the static"}
     lines = ["hypotheses (fit: the masks' loss after the contact, lower fits better):"]
     for item in judged:
-        where = {None: "", True: "  ends behind the static", False: "  ends not behind the static"}
         mark = "  (chosen)" if item["chosen"] else "  (ruled out by the masks)" if item["contradicted"] else ""
         lines.append(f"  {item['start']:<18s} contact {item['contact_frames']:3d} frames  fit {item['fit']:.3f}"
                      f"{where[item['ends_behind_static']]}{mark}")

@@ -338,7 +338,7 @@ def unseen_before_contact(seen: Evidence, signal: np.ndarray) -> bool:
 
 DROP = 0.05
 """[m] how much lower than stage (a) a simulation may end the object before a release it
-assumes is contradicted (:func:`chosen_simulation`)."""
+assumes is contradicted (:func:`judged_simulations`)."""
 
 
 @dataclass(frozen=True)
@@ -352,7 +352,7 @@ class Judgement:
         contact_frames: frames in its contact signal (more than given: held to the end).
         fit: its perceptual loss after the contact (:func:`settled_fit`; lower fits better).
         ends_behind_static: whether its object ends behind the first static box; None without one.
-        contradicted: whether the masks rule it out (:func:`chosen_simulation` says when).
+        contradicted: whether the masks rule it out (:func:`judged_simulations` says when).
         chosen: whether it is the simulation kept.
     """
 
@@ -370,8 +370,22 @@ class Judgement:
 
 def judged_simulations(seen: Evidence, own: Sequence[PhysicsHypothesis],
                        results: Sequence[PhysicalRollout]) -> list[Judgement]:
-    """One :class:`Judgement` per hypothesis of ``own`` (one demonstration's, with their final
-    ``results``), exactly one of them chosen (:func:`chosen_simulation`)."""
+    """One :class:`Judgement` per hypothesis of ``own`` (one demonstration's hypotheses, with
+    their final ``results``), exactly one of them chosen: the best fit (:func:`settled_fit`)
+    among those the masks do not contradict. The object on the static box and the object
+    behind it are compared by their fits: the renderer hides what the box hides, and an
+    object's bottom edge inside the box's rows may be that of an object behind it where the
+    box's outline dips (a turned box's far edge). Deeper than the box's top face reaches,
+    within its columns (:attr:`Evidence.below_top_face`), no box can hide it: a simulation
+    that ends with the object behind the box contradicts the masks there.
+
+    Where the object may still be held after the contact signal ends, a simulation of the
+    signal as given (the object released) contradicts them too where it ends the object more
+    than :data:`DROP` lower than stage (a) does (stage (a) fits each frame's masks without
+    physics, and an object it leaves in the air at the end, which the release drops, was
+    held), or where its hand stays off the object while the masks show it on it
+    (:func:`hovers_off_a_held_object`).
+    """
     unhidden = bool(seen.below_top_face.any())
     behind = [ends_behind_static(result.scene) if seen.demo.num_static else None for result in results]
     contradicted = [bool((unhidden and ends_behind) or drops_a_held_object(seen, h, result)
@@ -386,24 +400,14 @@ def judged_simulations(seen: Evidence, own: Sequence[PhysicsHypothesis],
     return judged
 
 
-def chosen_simulation(seen: Evidence, own: Sequence[PhysicsHypothesis], results: Sequence[PhysicalRollout]) -> int:
-    """Index into ``own`` (one demonstration's hypotheses, with their final ``results``) of the
-    simulation to keep: the best fit (:func:`settled_fit`) among those the masks do not
-    contradict. The object on the static box and the object behind it are compared by their
-    fits: the renderer hides what the box hides, and an object's bottom edge inside the box's
-    rows may be that of an object behind it where the box's outline dips (a turned box's far
-    edge). Deeper than the box's top face reaches, within its columns
-    (:attr:`Evidence.below_top_face`), no box can hide it: a simulation that ends with the
-    object behind the box contradicts the masks there.
+def kept(judged: Sequence[Judgement]) -> int:
+    """Index of the chosen one among ``judged``."""
+    return next(k for k, judgement in enumerate(judged) if judgement.chosen)
 
-    Where the object may still be held after the contact signal ends, a simulation of the
-    signal as given (the object released) contradicts them too where it ends the object more
-    than :data:`DROP` lower than stage (a) does (stage (a) fits each frame's masks without
-    physics, and an object it leaves in the air at the end, which the release drops, was
-    held), or where its hand stays off the object while the masks show it on it
-    (:func:`hovers_off_a_held_object`).
-    """
-    return next(k for k, judgement in enumerate(judged_simulations(seen, own, results)) if judgement.chosen)
+
+def chosen_simulation(seen: Evidence, own: Sequence[PhysicsHypothesis], results: Sequence[PhysicalRollout]) -> int:
+    """Index into ``own`` of the simulation to keep (:func:`judged_simulations` says which)."""
+    return kept(judged_simulations(seen, own, results))
 
 
 def drops_a_held_object(seen: Evidence, hypothesis: PhysicsHypothesis, result: PhysicalRollout) -> bool:

@@ -153,7 +153,8 @@ def static_box_drift(masks: np.ndarray) -> float:
     for k in range(2, masks.shape[1]):
         boxes = _boxes(masks[:, k] > 0.5)
         whole = np.isfinite(boxes).all(1)
-        whole[whole] = (boxes[whole, 0] > 0) & (boxes[whole, 1] > 0) & (boxes[whole, 2] < w - 1) & (boxes[whole, 3] < h - 1)
+        inside = (boxes[whole, 0] > 0) & (boxes[whole, 1] > 0) & (boxes[whole, 2] < w - 1) & (boxes[whole, 3] < h - 1)
+        whole[whole] = inside
         if not whole.any():
             continue
         sizes = boxes[whole, 2:] - boxes[whole, :2]

@@ -37,6 +37,7 @@ from warpskill.optimizer.hypotheses import (
     Judgement,
     PhysicsHypothesis,
     judged_simulations,
+    kept,
     physics_hypotheses,
     read_evidence,
     rival_groups,
@@ -200,7 +201,7 @@ before one line says the camera seems to move: farther than boxes drawn by peopl
 def _warn_of_a_moving_camera(demo: Demonstration, index: int | None) -> None:
     """One line when ``demo``'s static boxes wander more than :data:`MOVING_CAMERA` (the
     demonstration's ``index`` among several, else None): the reconstruction's camera is fixed,
-    so the fit after a camera move is looser, and the relation to the static may be misread."""
+    so the fit after a camera move is looser."""
     width = demo.image_size[1]
     drift = static_box_drift(demo.mask_channels()) if demo.num_static else 0.0
     if drift > MOVING_CAMERA * width:
@@ -327,7 +328,7 @@ def _chosen_reconstruction(demo: int, seen: Evidence, hypotheses: Sequence[Physi
     ``results``, with every simulation's judgement (:func:`~warpskill.optimizer.hypotheses.judged_simulations`)."""
     own = [b for b, h in enumerate(hypotheses) if h.demo == demo]
     judged = judged_simulations(seen, [hypotheses[b] for b in own], [results[b] for b in own])
-    b = own[next(k for k, judgement in enumerate(judged) if judgement.chosen)]
+    b = own[kept(judged)]
     result = results[b]
     return _reconstruction(seen.demo, result.scene, result.rollout.grasp, result.rollout.grasped, losses[b],
                            _with_known(options, seen.known), judged)
